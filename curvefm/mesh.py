@@ -19,8 +19,9 @@ from scipy.sparse.csgraph import connected_components
 
 from curvefm.errors import CurvefmError
 
-OPEN3D_FORMATS = {".ply", ".off", ".stl", ".glb", ".gltf"}
-SUPPORTED_FORMATS = sorted(OPEN3D_FORMATS | {".obj"})
+OPEN3D_FORMATS = {".ply", ".stl"}
+GLTF_FORMATS = {".glb", ".gltf"}
+SUPPORTED_FORMATS = sorted(OPEN3D_FORMATS | GLTF_FORMATS | {".obj", ".off"})
 
 
 def max_vertices() -> int:
@@ -72,8 +73,8 @@ class Mesh:
     @cached_property
     def edges(self) -> np.ndarray:
         """Unique undirected edges (E, 2), smaller id first."""
-        e = np.sort(self.faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-        return np.unique(e, axis=0)
+        keys, _ = edge_keys(self.faces, self.n_vertices)
+        return np.column_stack(np.divmod(np.unique(keys), self.n_vertices))
 
     @cached_property
     def edge_lengths(self) -> np.ndarray:
@@ -127,6 +128,13 @@ class Mesh:
         out = np.full((self.n_file_vertices,) + values.shape[1:], fill, dtype=values.dtype)
         out[self.file_ids] = values
         return out
+
+
+def edge_keys(faces: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """One int64 key ``min * n + max`` per face-edge (3 per face), and the counts of each unique key."""
+    e = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    keys = e[:, 0] * n + e[:, 1]
+    return keys, np.unique(keys, return_counts=True)[1]
 
 
 def edge_weight_graph(n: int, edges: np.ndarray, weights: np.ndarray) -> sp.csr_matrix:
@@ -204,6 +212,8 @@ def _checked_vertices(vertices, name: str) -> np.ndarray:
 
 
 def _triangulate(faces, report: MeshReport, name: str) -> np.ndarray:
+    if not isinstance(faces, np.ndarray) and faces is not None and all(len(f) == 3 for f in faces):
+        faces = np.array(faces, dtype=np.int64).reshape(-1, 3)
     if isinstance(faces, np.ndarray) and faces.ndim == 2 and faces.shape[1] == 3:
         tris = faces
     else:
@@ -255,8 +265,7 @@ def _drop_degenerate(vertices: np.ndarray, tris: np.ndarray, report: MeshReport,
 
 
 def _note_topology(mesh: Mesh, report: MeshReport) -> None:
-    e = np.sort(mesh.faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-    _, counts = np.unique(e, axis=0, return_counts=True)
+    _, counts = edge_keys(mesh.faces, mesh.n_vertices)
     report.non_manifold_edges = int((counts > 2).sum())
     report.boundary_edges = int((counts == 1).sum())
     report.components = int(connected_components(mesh.edge_graph, directed=False)[0])
@@ -283,20 +292,22 @@ def load_mesh(path: str | os.PathLike, name: str | None = None) -> Mesh:
     suffix = path.suffix.lower()
     if not path.is_file():
         raise CurvefmError(f"mesh file not found: {path}", kind="not_found")
-    if suffix not in OPEN3D_FORMATS and suffix != ".obj":
+    if suffix not in SUPPORTED_FORMATS:
         raise CurvefmError(
             f"unsupported mesh format '{suffix}' for {path.name}; supported: {', '.join(SUPPORTED_FORMATS)}"
         )
     if suffix == ".obj":
         return _load_obj(path, name)
+    if suffix == ".off":
+        return _load_off(path, name)
+    if suffix in GLTF_FORMATS:
+        return _load_gltf(path, name)
     return _load_with_open3d(path, name)
 
 
 def _load_with_open3d(path: Path, name: str) -> Mesh:
     import open3d as o3d
 
-    if path.suffix.lower() == ".off":
-        _check_off_header(path)
     o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)
     m = o3d.io.read_triangle_mesh(str(path), enable_post_processing=False)
     vertices = np.asarray(m.vertices)
@@ -308,14 +319,52 @@ def _load_with_open3d(path: Path, name: str) -> Mesh:
     uv = None
     if m.has_triangle_uvs():
         uv = _per_vertex_uv(faces, np.asarray(m.triangle_uvs).reshape(-1, 3, 2), len(vertices))
+    if path.suffix.lower() == ".stl":
+        vertices, faces = _weld(vertices, faces)
     return build_mesh(vertices, faces, uv, name=name)
 
 
-def _check_off_header(path: Path) -> None:
-    with open(path, "rb") as f:
-        head = f.read(64).lstrip()
-    if not head[:3].upper() in (b"OFF",) and not head[:4].upper() in (b"COFF", b"NOFF"):
+def _weld(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """STL stores every triangle's corners separately and no vertex ids: merge equal positions, numbering
+    vertices in order of first appearance in the file (the only order an STL file defines)."""
+    unique, first, inverse = np.unique(vertices, axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    return unique[order], rank[inverse.ravel()][faces]
+
+
+def _load_gltf(path: Path, name: str) -> Mesh:
+    # open3d's glTF reader (assimp) reorders vertices; trimesh with process=False keeps the buffer order
+    import trimesh
+
+    try:
+        scene = trimesh.load(path, process=False, force="mesh")
+    except Exception as exc:  # trimesh raises many types for broken files
+        raise CurvefmError(f"could not read {path.name} as glTF: {exc}") from None
+    uv = getattr(scene.visual, "uv", None)
+    return build_mesh(np.asarray(scene.vertices), np.asarray(scene.faces), uv, name=name)
+
+
+def _load_off(path: Path, name: str) -> Mesh:
+    # read here rather than by open3d, whose OFF reader parses coordinates as float32
+    lines = (line.split("#", 1)[0].split() for line in path.read_text(errors="replace").splitlines())
+    tokens = [t for t in lines if t]
+    if not tokens or not tokens[0][0].upper().endswith("OFF"):
         raise CurvefmError(f"{path.name} is not an OFF file: it does not start with 'OFF'")
+    try:
+        counts = tokens[0][1:] or tokens[1]
+        n_vertices, n_faces = int(counts[0]), int(counts[1])
+        body = tokens[1 if tokens[0][1:] else 2 :]
+        if len(body) < n_vertices + n_faces:
+            raise ValueError(f"header promises {n_vertices} vertices and {n_faces} faces, file is shorter")
+        vertices = [row[:3] for row in body[:n_vertices]]
+        faces = [row[1 : 1 + int(row[0])] for row in body[n_vertices : n_vertices + n_faces]]
+        vertices = np.array(vertices, dtype=np.float64)
+        faces = [[int(i) for i in face] for face in faces]
+    except (ValueError, IndexError) as exc:
+        raise CurvefmError(f"{path.name} is not a valid OFF file: {exc}") from None
+    return build_mesh(vertices, faces, name=name)
 
 
 def _per_vertex_uv(faces: np.ndarray, corner_uv: np.ndarray, n: int) -> np.ndarray:
@@ -392,6 +441,9 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike, uv: np.ndarray | None = None)
     if suffix == ".obj":
         _save_obj(mesh, path, uv)
         return
+    if suffix == ".off":
+        _save_off(mesh, path)
+        return
     if suffix not in OPEN3D_FORMATS:
         raise CurvefmError(f"cannot write format '{suffix}'; supported: {', '.join(SUPPORTED_FORMATS)}")
     import open3d as o3d
@@ -399,14 +451,22 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike, uv: np.ndarray | None = None)
     m = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(mesh.vertices), o3d.utility.Vector3iVector(mesh.faces))
     if suffix == ".stl":
         m.compute_triangle_normals()
-    if not o3d.io.write_triangle_mesh(str(path), m, write_ascii=suffix in (".off",)):
+    if not o3d.io.write_triangle_mesh(str(path), m):
         raise CurvefmError(f"could not write {path}")
+
+
+def _save_off(mesh: Mesh, path: Path) -> None:
+    # written here rather than by open3d, whose OFF writer rounds coordinates to 7 digits
+    with open(path, "w") as f:
+        f.write(f"OFF\n{mesh.n_vertices} {len(mesh.faces)} 0\n")
+        np.savetxt(f, mesh.vertices, fmt="%.17g")
+        np.savetxt(f, mesh.faces, fmt="3 %d %d %d")
 
 
 def _save_obj(mesh: Mesh, path: Path, uv: np.ndarray | None) -> None:
     with open(path, "w") as f:
         f.write(f"# written by curvefm: {mesh.n_vertices} vertices, {len(mesh.faces)} faces\n")
-        np.savetxt(f, mesh.vertices, fmt="v %.9g %.9g %.9g")
+        np.savetxt(f, mesh.vertices, fmt="v %.17g %.17g %.17g")
         faces = mesh.faces + 1
         if uv is not None:
             np.savetxt(f, uv, fmt="vt %.9g %.9g")

@@ -1,0 +1,139 @@
+"""The whole pipeline for two meshes and a list of corresponding curves, as the CLI and scripts use it."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from curvefm import registry
+from curvefm.basis import Basis
+from curvefm.curves import DEFAULT_SAMPLES, trace_curve
+from curvefm.errors import CurvefmError
+from curvefm.mesh import Mesh, save_mesh
+from curvefm.pointwise import MapProblem, PointwiseMaps
+from curvefm.progress import Progress, no_progress, scaled
+from curvefm.solver import DEFAULT_ALPHA, DEFAULT_K, CurveMapSolver
+from curvefm.store import Store
+from curvefm.texture import texture_coordinates
+from curvefm.transfer import transfer
+
+
+class CurveSpec(BaseModel):
+    """One pair of corresponding curves, in file vertex ids (0-based).
+
+    ``source`` and ``target`` are endpoints or waypoints joined by the tracer, or, with ``explicit``, whole
+    edge-connected vertex paths.
+    """
+
+    model_config = ConfigDict(extra="forbid")
+    source: list[int] = Field(min_length=1)
+    target: list[int] = Field(min_length=1)
+    explicit: bool = False
+    tracer: str | None = None
+    tracer_params: dict = Field(default_factory=dict)
+    weight: float = Field(1.0, gt=0)
+
+
+class CurvesFile(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    curves: list[CurveSpec]
+
+
+def read_curves(path: str | Path) -> list[CurveSpec]:
+    try:
+        return CurvesFile.model_validate(json.loads(Path(path).read_text())).curves
+    except FileNotFoundError:
+        raise CurvefmError(f"curves file not found: {path}", kind="not_found") from None
+    except json.JSONDecodeError as exc:
+        raise CurvefmError(f"curves file {path} is not valid JSON: {exc}") from None
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        where = ".".join(str(p) for p in first["loc"])
+        raise CurvefmError(f"curves file {path}: {where}: {first['msg']}") from None
+
+
+def trace_pair(mesh_M: Mesh, mesh_N: Mesh, spec: CurveSpec, default_tracer: str) -> tuple[np.ndarray, np.ndarray]:
+    tracer = spec.tracer or default_tracer
+    paths = []
+    for mesh, ids in ((mesh_M, spec.source), (mesh_N, spec.target)):
+        if spec.explicit:
+            paths.append(trace_curve(mesh, path=ids))
+        else:
+            paths.append(trace_curve(mesh, waypoints=ids, tracer=tracer, params=spec.tracer_params))
+    return paths[0], paths[1]
+
+
+@dataclass
+class MatchResult:
+    mesh_M: Mesh
+    mesh_N: Mesh
+    basis_M: Basis
+    basis_N: Basis
+    solver: CurveMapSolver
+    maps: PointwiseMaps | None = None
+    paths: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
+
+    def problem(self) -> MapProblem:
+        return MapProblem(
+            self.mesh_M.vertices, self.mesh_M.faces, self.solver.basis_M,
+            self.mesh_N.vertices, self.mesh_N.faces, self.solver.basis_N,
+            self.solver.C_MN, self.solver.C_NM,
+        )
+
+
+def match(
+    mesh_M: Mesh,
+    mesh_N: Mesh,
+    curves: list[CurveSpec] | list[tuple[np.ndarray, np.ndarray]],
+    k: int = DEFAULT_K,
+    alpha: float = DEFAULT_ALPHA,
+    tracer: str = "geodesic",
+    converter: str = "nearest-neighbor",
+    converter_params: dict | None = None,
+    store: Store | None = None,
+    samples: int = DEFAULT_SAMPLES,
+    progress: Progress = no_progress,
+) -> MatchResult:
+    """Bases (from the store or computed), curves traced, both functional maps solved, pointwise maps.
+
+    ``curves`` are :class:`CurveSpec` (file ids, traced here) or ready ``(path_M, path_N)`` internal paths.
+    """
+    store = store or Store()
+    convert = registry.get("converter", converter)
+    parsed = convert.parse_params(converter_params)
+    basis_M = store.ensure_basis(mesh_M, k, progress=scaled(progress, 0.0, 0.4))
+    basis_N = store.ensure_basis(mesh_N, k, progress=scaled(progress, 0.4, 0.8))
+    paths = [trace_pair(mesh_M, mesh_N, c, tracer) if isinstance(c, CurveSpec) else c for c in curves]
+    if not paths:
+        raise CurvefmError("at least one pair of curves is needed to compute a map")
+    solver = CurveMapSolver(mesh_M.vertices, basis_M, mesh_N.vertices, basis_N, k=k, alpha=alpha, samples=samples)
+    weights = [c.weight if isinstance(c, CurveSpec) else 1.0 for c in curves]
+    solver.add_curves([(pm, pn, w) for (pm, pn), w in zip(paths, weights, strict=True)])
+    result = MatchResult(mesh_M, mesh_N, basis_M, basis_N, solver, paths=paths)
+    result.maps = convert.run(result.problem(), parsed, scaled(progress, 0.8, 1.0))
+    return result
+
+
+def write_outputs(result: MatchResult, out_dir: str | Path) -> list[Path]:
+    """The files of ``curvefm match``; maps are written per **file** vertex in file ids (-1 for a dropped
+    vertex), one integer per line: ``map_target_to_source.txt`` line j = source vertex for target vertex j."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    mesh_M, mesh_N, maps = result.mesh_M, result.mesh_N, result.maps
+    np.save(out / "C_source_to_target.npy", result.solver.C_MN)
+    np.save(out / "C_target_to_source.npy", result.solver.C_NM)
+    files = [out / "C_source_to_target.npy", out / "C_target_to_source.npy"]
+    for name, p2p, image, domain in (
+        ("map_target_to_source.txt", maps.p2p_NM, mesh_M, mesh_N),
+        ("map_source_to_target.txt", maps.p2p_MN, mesh_N, mesh_M),
+    ):
+        np.savetxt(out / name, domain.per_file_vertex(image.file_ids[p2p], -1), fmt="%d")
+        files.append(out / name)
+    uv_N = transfer(result.solver.C_MN, result.solver.basis_M, result.solver.basis_N, texture_coordinates(mesh_M))
+    save_mesh(mesh_N, out / "target_textured.obj", uv=uv_N)
+    files.append(out / "target_textured.obj")
+    return files

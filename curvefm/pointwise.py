@@ -1,0 +1,48 @@
+"""Pointwise maps and the input every converter receives.
+
+Direction convention: ``p2p_NM[j]`` is the vertex of M matched to vertex j of N (a map N -> M). The
+functional map ``C_MN`` (functions on M -> functions on N) yields ``p2p_NM`` (Ovsjanikov et al. 2012): the
+image of a delta at vertex x of M has coefficients ``C_MN Phi[x]``, which should match ``Psi[y]`` at its
+partner y.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from curvefm.basis import Basis
+from curvefm.neighbors import nearest_neighbors
+
+
+@dataclass(frozen=True)
+class MapProblem:
+    """What a converter works from: both meshes' vertices and faces, both bases, and both maps."""
+
+    vertices_M: np.ndarray
+    faces_M: np.ndarray
+    basis_M: Basis
+    vertices_N: np.ndarray
+    faces_N: np.ndarray
+    basis_N: Basis
+    C_MN: np.ndarray
+    C_NM: np.ndarray
+
+
+@dataclass(frozen=True)
+class PointwiseMaps:
+    p2p_NM: np.ndarray  # (n,) vertex of M for each vertex of N
+    p2p_MN: np.ndarray  # (m,) vertex of N for each vertex of M
+
+
+def pointwise_from_fmap(C_MN: np.ndarray, basis_M: Basis, basis_N: Basis, search: str = "faiss") -> np.ndarray:
+    """``p2p_NM`` from ``C_MN`` by nearest neighbours in the spectral embedding."""
+    k_N, k_M = C_MN.shape
+    return nearest_neighbors(basis_M.evecs[:, :k_M] @ C_MN.T, basis_N.evecs[:, :k_N], search)
+
+
+def fmap_from_pointwise(p2p_NM: np.ndarray, basis_M: Basis, basis_N: Basis, k_M: int, k_N: int) -> np.ndarray:
+    """``C_MN`` (k_N x k_M) induced by a pointwise map N -> M: ``Psi^+ Pi Phi`` with the mass-weighted
+    pseudo-inverse ``Psi^+ = Psi^T A_N``."""
+    return basis_N.evecs[:, :k_N].T @ (basis_N.mass[:, None] * basis_M.evecs[p2p_NM, :k_M])

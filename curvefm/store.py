@@ -1,0 +1,157 @@
+"""The artifact store: one data directory holding meshes and bases, content-addressed.
+
+Layout under the root (``CURVEFM_DATA``, default ``~/.local/share/curvefm``)::
+
+    meshes/<mesh hash>.npz                         validated mesh arrays
+    bases/<mesh hash>/<plugin>-k<k>-<params>.npz   eigenbases
+    sessions/<session id>.json                     written by the service
+
+Every write goes to a temporary file that is fsync'ed and renamed into place, so readers (other processes,
+other machines on a shared volume) see either nothing or a whole file, and a crash never leaves half a file.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from curvefm import registry
+from curvefm.basis import Basis
+from curvefm.errors import CurvefmError
+from curvefm.mesh import Mesh, MeshReport
+from curvefm.progress import Progress, no_progress
+
+
+def default_data_dir() -> Path:
+    return Path(os.environ.get("CURVEFM_DATA") or Path.home() / ".local" / "share" / "curvefm")
+
+
+def atomic_write(path: Path, data: bytes) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    dir_fd = os.open(path.parent, os.O_DIRECTORY)
+    try:
+        os.fsync(dir_fd)
+    finally:
+        os.close(dir_fd)
+
+
+def params_key(params: dict) -> str:
+    return hashlib.sha256(json.dumps(params, sort_keys=True).encode()).hexdigest()[:12]
+
+
+class Store:
+    def __init__(self, root: str | os.PathLike | None = None):
+        self.root = Path(root) if root is not None else default_data_dir()
+        self.root.mkdir(parents=True, exist_ok=True)
+
+    # -- meshes -------------------------------------------------------------------------------------------
+    def mesh_path(self, mesh_hash: str) -> Path:
+        return self.root / "meshes" / f"{mesh_hash}.npz"
+
+    def put_mesh(self, mesh: Mesh) -> str:
+        path = self.mesh_path(mesh.content_hash)
+        if not path.exists():
+            buffer = io.BytesIO()
+            arrays = dict(vertices=mesh.vertices, faces=mesh.faces, file_ids=mesh.file_ids)
+            if mesh.uv is not None:
+                arrays["uv"] = mesh.uv
+            meta = dict(
+                name=mesh.name,
+                n_file_vertices=mesh.n_file_vertices,
+                report=mesh.report.as_dict(),
+                texture_path=mesh.texture_path,
+            )
+            np.savez(buffer, meta=np.array(json.dumps(meta)), **arrays)
+            atomic_write(path, buffer.getvalue())
+        return mesh.content_hash
+
+    def has_mesh(self, mesh_hash: str) -> bool:
+        return _safe_id(mesh_hash) and self.mesh_path(mesh_hash).is_file()
+
+    def get_mesh(self, mesh_hash: str) -> Mesh:
+        if not self.has_mesh(mesh_hash):
+            raise CurvefmError(f"no shape with id '{mesh_hash}'", kind="not_found")
+        with np.load(self.mesh_path(mesh_hash)) as z:
+            meta = json.loads(str(z["meta"]))
+            return Mesh(
+                vertices=z["vertices"],
+                faces=z["faces"],
+                file_ids=z["file_ids"],
+                n_file_vertices=meta["n_file_vertices"],
+                report=MeshReport(**meta["report"]),
+                uv=z["uv"] if "uv" in z else None,
+                texture_path=meta["texture_path"],
+                name=meta["name"],
+            )
+
+    def mesh_ids(self) -> list[str]:
+        return sorted(p.stem for p in (self.root / "meshes").glob("*.npz"))
+
+    # -- bases --------------------------------------------------------------------------------------------
+    def basis_path(self, mesh_hash: str, plugin: str, k: int, params: dict) -> Path:
+        return self.root / "bases" / mesh_hash / f"{plugin}-k{k}-{params_key(params)}.npz"
+
+    def find_basis(self, mesh_hash: str, k: int, plugin: str = "laplace-beltrami", params: dict | None = None):
+        """A stored basis with at least k functions (truncated to k), or None."""
+        params = params or {}
+        folder = self.root / "bases" / mesh_hash
+        best = None
+        for path in folder.glob(f"{plugin}-k*-{params_key(params)}.npz"):
+            stored_k = int(path.name[len(plugin) + 2 :].split("-")[0])
+            if stored_k >= k and (best is None or stored_k < best[0]):
+                best = (stored_k, path)
+        if best is None:
+            return None
+        return Basis.from_bytes(best[1].read_bytes()).truncated(k)
+
+    def stored_bases(self, mesh_hash: str) -> list[dict]:
+        out = []
+        for path in sorted((self.root / "bases" / mesh_hash).glob("*.npz")):
+            plugin, rest = path.stem.rsplit("-k", 1)
+            k, key = rest.split("-")
+            out.append({"plugin": plugin, "k": int(k), "params_key": key})
+        return out
+
+    def put_basis(self, mesh_hash: str, basis: Basis, plugin: str, params: dict) -> None:
+        atomic_write(self.basis_path(mesh_hash, plugin, basis.k, params), basis.to_bytes())
+
+    def ensure_basis(
+        self,
+        mesh: Mesh,
+        k: int,
+        plugin: str = "laplace-beltrami",
+        params: dict | None = None,
+        progress: Progress = no_progress,
+    ) -> Basis:
+        """The stored basis, or compute it with the named basis plugin and store it."""
+        basis_plugin = registry.get("basis", plugin)
+        parsed = basis_plugin.parse_params(params)
+        canonical = parsed.model_dump()
+        mesh_hash = self.put_mesh(mesh)
+        found = self.find_basis(mesh_hash, k, plugin, canonical)
+        if found is not None:
+            progress(1.0, "basis found in the store")
+            return found
+        basis = basis_plugin.run(mesh, k, parsed, progress)
+        self.put_basis(mesh_hash, basis, plugin, canonical)
+        return basis
+
+
+def _safe_id(identifier: str) -> bool:
+    return isinstance(identifier, str) and identifier.isalnum() and 0 < len(identifier) <= 64

@@ -1,0 +1,37 @@
+"""Converter plugin ``nearest-neighbor``: functional maps -> pointwise maps (Ovsjanikov et al. 2012)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from curvefm.pointwise import MapProblem, PointwiseMaps, pointwise_from_fmap
+from curvefm.progress import Progress, no_progress
+from curvefm.registry import Plugin
+
+
+class NearestNeighborParams(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    search: Literal["faiss", "blocked"] = Field(
+        "faiss", description="exact search backend: faiss IndexFlatL2, or blocked numpy matrix products"
+    )
+
+
+def convert_nearest_neighbor(
+    problem: MapProblem, params: NearestNeighborParams, progress: Progress = no_progress
+) -> PointwiseMaps:
+    progress(0.0, "nearest neighbours N -> M")
+    p2p_NM = pointwise_from_fmap(problem.C_MN, problem.basis_M, problem.basis_N, params.search)
+    progress(0.5, "nearest neighbours M -> N")
+    p2p_MN = pointwise_from_fmap(problem.C_NM, problem.basis_N, problem.basis_M, params.search)
+    progress(1.0, "done")
+    return PointwiseMaps(p2p_NM=p2p_NM, p2p_MN=p2p_MN)
+
+
+NEAREST_NEIGHBOR = Plugin(
+    name="nearest-neighbor",
+    description="Nearest neighbours in the spectral embedding, both directions (Ovsjanikov et al. 2012)",
+    Params=NearestNeighborParams,
+    run=convert_nearest_neighbor,
+)
