@@ -1,0 +1,192 @@
+"""Curve-constrained functional maps (Gehre et al., SGP 2018), updated incrementally.
+
+``C_MN`` (k x k) maps the coefficients of a function on M (in M's basis) to coefficients on N. It minimises
+
+    E(C) = alpha * ||C Lam_M - Lam_N C||^2  +  sum_l (w_l / W) * (1 / s) * ||PsiBar_l C - PhiBar_l||^2
+
+with ``PhiBar_l = P_l Phi`` (s x k) the basis of M restricted to the l-th curve's s uniform samples and
+``PsiBar_l`` the same on N. Normalisation, so one ``alpha`` serves every pair:
+
+* bases are those of the meshes scaled to unit area (see :mod:`curvefm.basis`): invariant to mesh scale;
+* each curve's term is a mean over its samples (1/s): invariant to samples per curve;
+* curve weights are divided by their sum ``W``: invariant to the number of curves;
+* eigenvalues are divided by ``max(lam_M[k-1], lam_N[k-1])``, so the commutativity term is O(1) for any k.
+
+Because ``Lam`` is diagonal, E separates by columns: column j of C solves the k x k system
+``(G + alpha * diag((lam^N_i - lam^M_j)^2)) c_j = B[:, j]`` with ``G = sum_l w~_l PsiBar_l^T PsiBar_l`` and
+``B = sum_l w~_l PsiBar_l^T PhiBar_l``. Each curve keeps its own k x k products, so adding, editing or
+removing one only re-sums k x k matrices before the k small solves (:mod:`curvefm.column_solve`).
+``C_NM`` is the same problem with the roles of M and N exchanged.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+
+from curvefm.basis import Basis
+from curvefm.column_solve import solve_both
+from curvefm.curves import DEFAULT_SAMPLES, restrict
+from curvefm.errors import CurvefmError
+
+DEFAULT_ALPHA = 100.0  # chosen by the sweep in benchmarks/bench_alpha.py; see the README
+DEFAULT_K = 120
+
+
+@dataclass(frozen=True)
+class CurveTerm:
+    """One curve's contribution: its weight and the k x k products of its restricted bases (means over samples)."""
+
+    path_M: np.ndarray
+    path_N: np.ndarray
+    weight: float
+    gram_M: np.ndarray  # PhiBar^T PhiBar / s
+    gram_N: np.ndarray  # PsiBar^T PsiBar / s
+    cross: np.ndarray  # PsiBar^T PhiBar / s   (rows: N's basis, columns: M's basis)
+
+
+class CurveMapSolver:
+    """Built once per shape pair; each curve edit returns the new ``C_MN`` and ``C_NM``.
+
+    >>> solver = CurveMapSolver(vertices_M, basis_M, vertices_N, basis_N, k=120)
+    >>> cid = solver.add_curve(path_M, path_N)          # vertex paths, internal ids
+    >>> C_MN, C_NM = solver.C_MN, solver.C_NM
+    """
+
+    def __init__(
+        self,
+        vertices_M: np.ndarray,
+        basis_M: Basis,
+        vertices_N: np.ndarray,
+        basis_N: Basis,
+        k: int = DEFAULT_K,
+        alpha: float = DEFAULT_ALPHA,
+        samples: int = DEFAULT_SAMPLES,
+    ):
+        if k > min(basis_M.k, basis_N.k):
+            raise CurvefmError(f"k = {k} exceeds the computed bases (M has {basis_M.k}, N has {basis_N.k})")
+        if not alpha >= 0:
+            raise CurvefmError(f"alpha must be >= 0, got {alpha}")
+        if samples < 2:
+            raise CurvefmError(f"samples per curve must be at least 2, got {samples}")
+        self.k, self.alpha, self.samples = k, float(alpha), samples
+        self.vertices_M, self.vertices_N = vertices_M, vertices_N
+        self.basis_M, self.basis_N = basis_M.truncated(k), basis_N.truncated(k)
+        scale = max(self.basis_M.evals[-1], self.basis_N.evals[-1], 1e-12)
+        self.lam_M, self.lam_N = self.basis_M.evals / scale, self.basis_N.evals / scale
+        self.curves: dict[str, CurveTerm] = {}
+        self._ids = itertools.count(1)
+        self.C_MN = np.zeros((k, k))
+        self.C_NM = np.zeros((k, k))
+
+    # -- editing ----------------------------------------------------------------------------------------
+    def add_curve(self, path_M, path_N, weight: float = 1.0, curve_id: str | None = None) -> str:
+        curve_id = curve_id or f"c{next(self._ids)}"
+        if curve_id in self.curves:
+            raise CurvefmError(f"curve id '{curve_id}' already exists", kind="conflict")
+        self.curves[curve_id] = self._term(path_M, path_N, weight)
+        self._solve()
+        return curve_id
+
+    def add_curves(self, curves) -> list[str]:
+        """Add several ``(path_M, path_N, weight)`` curves with a single solve."""
+        terms = [self._term(path_M, path_N, weight) for path_M, path_N, weight in curves]
+        ids = []
+        for term in terms:
+            ids.append(f"c{next(self._ids)}")
+            self.curves[ids[-1]] = term
+        self._solve()
+        return ids
+
+    def replace_curve(self, curve_id: str, path_M, path_N, weight: float = 1.0) -> None:
+        self._require(curve_id)
+        self.curves[curve_id] = self._term(path_M, path_N, weight)
+        self._solve()
+
+    def remove_curve(self, curve_id: str) -> None:
+        self._require(curve_id)
+        del self.curves[curve_id]
+        self._solve()
+
+    def _require(self, curve_id: str) -> None:
+        if curve_id not in self.curves:
+            raise CurvefmError(f"no curve '{curve_id}' in this solver", kind="not_found")
+
+    def _term(self, path_M, path_N, weight: float) -> CurveTerm:
+        if not weight > 0 or not np.isfinite(weight):
+            raise CurvefmError(f"curve weight must be a positive number, got {weight}")
+        path_M, path_N = np.asarray(path_M, dtype=np.int64), np.asarray(path_N, dtype=np.int64)
+        phi = restrict(self.vertices_M, path_M, self.basis_M.evecs, self.samples)
+        psi = restrict(self.vertices_N, path_N, self.basis_N.evecs, self.samples)
+        s = self.samples
+        return CurveTerm(path_M, path_N, float(weight), phi.T @ phi / s, psi.T @ psi / s, psi.T @ phi / s)
+
+    # -- solving ----------------------------------------------------------------------------------------
+    def normal_equations(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(G_M, G_N, B)`` summed over curves with normalised weights (B: rows N, columns M)."""
+        total = sum(term.weight for term in self.curves.values()) or 1.0
+        G_M, G_N, B = (np.zeros((self.k, self.k)) for _ in range(3))
+        for term in self.curves.values():
+            w = term.weight / total
+            G_M += w * term.gram_M
+            G_N += w * term.gram_N
+            B += w * term.cross
+        return G_M, G_N, B
+
+    def _solve(self) -> None:
+        if not self.curves:
+            self.C_MN, self.C_NM = np.zeros((self.k, self.k)), np.zeros((self.k, self.k))
+            return
+        G_M, G_N, B = self.normal_equations()
+        warm = self.C_MN.any()  # the map before this edit is a good start for the iterative path
+        self.C_MN, self.C_NM = solve_both(
+            G_N, G_M, B, self.lam_N, self.lam_M, self.alpha,
+            self.C_MN if warm else None, self.C_NM if warm else None,
+        )
+
+    def energy(self, C_MN: np.ndarray) -> float:
+        """E(C_MN) up to the constant sum_l w~_l ||PhiBar_l||^2 / s (so it may be negative)."""
+        _, G_N, B = self.normal_equations()
+        D = (self.lam_N[:, None] - self.lam_M[None, :]) ** 2
+        return float(
+            self.alpha * np.sum(D * C_MN**2) + np.sum(C_MN * (G_N @ C_MN)) - 2 * np.sum(C_MN * B)
+        )
+
+
+def conjugate_gradient_solve(
+    G: np.ndarray,
+    B: np.ndarray,
+    lam_rows: np.ndarray,
+    lam_cols: np.ndarray,
+    alpha: float,
+    C0: np.ndarray | None = None,
+    tol: float = 1e-8,
+    max_iter: int = 5000,
+) -> tuple[np.ndarray, int]:
+    """The paper's reference solver (its Algorithm 2): conjugate gradients on the whole k^2 system
+    ``G C + alpha * D o C = B`` (``D[i, j] = (lam_rows[i] - lam_cols[j])^2``), one step length for all
+    columns, optionally warm-started from ``C0``. Returns ``(C, iterations)``; stops when the residual's
+    Frobenius norm falls below ``tol`` times that of ``B``."""
+    D = alpha * (lam_rows[:, None] - lam_cols[None, :]) ** 2
+
+    def apply(X: np.ndarray) -> np.ndarray:
+        return G @ X + D * X
+
+    C = np.zeros_like(B) if C0 is None else C0.copy()
+    R = B - apply(C)
+    P = R.copy()
+    rr = np.sum(R * R)
+    stop = (tol * np.linalg.norm(B)) ** 2
+    for iteration in range(max_iter):
+        if rr <= stop:
+            return C, iteration
+        AP = apply(P)
+        step = rr / np.sum(P * AP)
+        C += step * P
+        R -= step * AP
+        rr_new = np.sum(R * R)
+        P = R + (rr_new / rr) * P
+        rr = rr_new
+    return C, max_iter

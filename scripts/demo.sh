@@ -1,0 +1,7 @@
+#!/usr/bin/env bash
+# Sets up (scripts/setup.sh) and starts the service with its web UI on the embedded defaults: no Redis,
+# data in ~/.local/share/curvefm, two generated demo shapes with a ready session. Open http://127.0.0.1:8000
+set -euo pipefail
+cd "$(dirname "$0")/.."
+CURVEFM_SKIP_BROWSER=1 bash scripts/setup.sh
+exec curvefm serve --demo --host "${CURVEFM_HOST:-127.0.0.1}" --port "${CURVEFM_PORT:-8000}"

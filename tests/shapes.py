@@ -1,0 +1,26 @@
+"""Small shapes generated in code for fast tests."""
+
+import numpy as np
+
+from curvefm.mesh import build_mesh
+
+
+def ellipsoid(n_lat=24, n_lon=48, radii=(1.0, 0.7, 0.5), scale=1.0):
+    """A closed triangulated ellipsoid (UV sphere with poles), ~n_lat * n_lon vertices."""
+    theta = np.linspace(0, np.pi, n_lat + 2)[1:-1]
+    phi = np.linspace(0, 2 * np.pi, n_lon, endpoint=False)
+    t, p = np.meshgrid(theta, phi, indexing="ij")
+    ring = np.c_[np.sin(t).ravel() * np.cos(p).ravel(), np.sin(t).ravel() * np.sin(p).ravel(), np.cos(t).ravel()]
+    vertices = np.vstack([ring, [[0, 0, 1], [0, 0, -1]]]) * np.asarray(radii) * scale
+    north, south = len(ring), len(ring) + 1
+    faces = []
+    for i in range(n_lat - 1):
+        for j in range(n_lon):
+            a, b = i * n_lon + j, i * n_lon + (j + 1) % n_lon
+            c, d = a + n_lon, b + n_lon
+            faces += [[a, c, b], [b, c, d]]
+    for j in range(n_lon):
+        faces.append([north, j, (j + 1) % n_lon])
+        last = (n_lat - 1) * n_lon
+        faces.append([south, last + (j + 1) % n_lon, last + j])
+    return build_mesh(vertices, np.array(faces), name="ellipsoid")

@@ -1,0 +1,92 @@
+"""Plugins through entry points: built-ins listed, a third-party package installed and used, bad names."""
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from curvefm import registry
+from curvefm.errors import CurvefmError
+
+THIRD_PARTY_PLUGIN = '''
+import numpy as np
+from pydantic import BaseModel, ConfigDict
+
+from curvefm.paths import shortest_path
+from curvefm.registry import Plugin
+
+
+class Params(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    hops: int = 1
+
+
+def trace(mesh, start, end, params):
+    return shortest_path(mesh.edge_graph, start, end)
+
+
+HOPS = Plugin(name="hops", description="a lab member's tracer", Params=Params, run=trace)
+'''
+
+PYPROJECT = '''
+[build-system]
+requires = ["setuptools"]
+build-backend = "setuptools.build_meta"
+
+[project]
+name = "curvefm-hops"
+version = "0.1"
+
+[project.entry-points."curvefm.tracers"]
+hops = "curvefm_hops:HOPS"
+'''
+
+
+def test_builtin_plugins_are_registered():
+    assert {"geodesic", "anisotropic"} <= set(registry.names("tracer"))
+    assert "laplace-beltrami" in registry.names("basis")
+    assert "nearest-neighbor" in registry.names("converter")
+    described = registry.describe_all()
+    lb = next(p for p in described["basis"] if p["name"] == "laplace-beltrami")
+    assert "laplacian" in lb["parameters"]["properties"]
+
+
+def test_unknown_plugins_and_parameters_are_named():
+    with pytest.raises(CurvefmError, match="unknown tracer 'nope'; installed tracers: .*geodesic"):
+        registry.get("tracer", "nope")
+    with pytest.raises(CurvefmError, match="bad parameters for 'laplace-beltrami': laplacian"):
+        registry.get("basis", "laplace-beltrami").parse_params({"laplacian": "magic"})
+    with pytest.raises(CurvefmError, match="bad parameters for 'nearest-neighbor': colour"):
+        registry.get("converter", "nearest-neighbor").parse_params({"colour": 1})
+
+
+def test_a_third_party_tracer_installed_with_pip_is_listed_and_used(tmp_path):
+    package = tmp_path / "pkg"
+    package.mkdir()
+    (package / "pyproject.toml").write_text(PYPROJECT)
+    (package / "curvefm_hops.py").write_text(THIRD_PARTY_PLUGIN)
+    site = tmp_path / "site"
+    subprocess.run(
+        [sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--no-build-isolation",
+         "--target", str(site), str(package)],
+        check=True, capture_output=True,
+    )
+    env = {**os.environ, "PYTHONPATH": str(site)}
+    listed = subprocess.run(
+        [sys.executable, "-m", "curvefm.cli", "plugins", "--json"], env=env, check=True, capture_output=True, text=True
+    )
+    assert "hops" in [p["name"] for p in json.loads(listed.stdout)["tracer"]]
+    script = textwrap.dedent('''
+        import sys
+        sys.path.insert(0, "tests")
+        from shapes import ellipsoid
+        from curvefm.curves import trace_curve
+        path = trace_curve(ellipsoid(), waypoints=[0, 600], tracer="hops", params={"hops": 2})
+        print(path[0], path[-1], len(path))
+    ''')
+    used = subprocess.run([sys.executable, "-c", script], env=env, check=True, capture_output=True, text=True)
+    start, end, length = used.stdout.split()
+    assert (start, end) == ("0", "600") and int(length) > 2

@@ -1,0 +1,136 @@
+"""The curve-constrained solver: exactness, incremental updates, normalisation invariances."""
+
+import numpy as np
+import pytest
+from shapes import ellipsoid
+
+from curvefm.basis import Basis
+from curvefm.errors import CurvefmError
+from curvefm.paths import shortest_path
+from curvefm.registry import get
+from curvefm.solver import CurveMapSolver, conjugate_gradient_solve
+
+K = 30
+
+
+def basis_of(mesh, k=K + 10) -> Basis:
+    plugin = get("basis", "laplace-beltrami")
+    return plugin.run(mesh, k, plugin.parse_params({}))
+
+
+@pytest.fixture(scope="module")
+def pair():
+    M = ellipsoid()
+    N = ellipsoid(radii=(1.1, 0.6, 0.55))  # same connectivity: vertex i <-> vertex i
+    return M, basis_of(M), N, basis_of(N)
+
+
+def curves_on(mesh, pairs):
+    return [shortest_path(mesh.edge_graph, a, b) for a, b in pairs]
+
+
+ENDPOINTS = [(0, 600), (100, 900), (250, 1100), (1152, 1153), (40, 700)]
+
+
+def solver_with(pair, n_curves=3, **kwargs):
+    M, bM, N, bN = pair
+    solver = CurveMapSolver(M.vertices, bM, N.vertices, bN, k=K, **kwargs)
+    paths = curves_on(M, ENDPOINTS[:n_curves])
+    ids = solver.add_curves([(p, p, 1.0) for p in paths])
+    return solver, ids, paths
+
+
+def test_solution_is_the_minimiser_of_the_full_k2_system(pair):
+    solver, _, _ = solver_with(pair, alpha=10.0)
+    G_M, G_N, B = solver.normal_equations()
+    D = (solver.lam_N[:, None] - solver.lam_M[None, :]) ** 2
+    # dense (k^2 x k^2) normal equations of E, columns of C stacked: (I (x) G + alpha diag(vec D)) vec C = vec B
+    H = np.kron(np.eye(K), G_N) + solver.alpha * np.diag(D.T.ravel())
+    dense = np.linalg.solve(H, B.T.ravel()).reshape(K, K).T
+    np.testing.assert_allclose(solver.C_MN, dense, atol=1e-8 * np.abs(dense).max())
+    # and it is a minimum: the energy rises in random directions
+    E0 = solver.energy(solver.C_MN)
+    rng = np.random.default_rng(0)
+    assert all(solver.energy(solver.C_MN + 1e-3 * rng.standard_normal((K, K))) > E0 for _ in range(5))
+
+
+def test_paper_conjugate_gradients_reach_the_same_minimiser(pair):
+    solver, _, _ = solver_with(pair, alpha=10.0)
+    G_M, G_N, B = solver.normal_equations()
+    C_cg, iterations = conjugate_gradient_solve(G_N, B, solver.lam_N, solver.lam_M, solver.alpha, tol=1e-12)
+    assert iterations > 0
+    np.testing.assert_allclose(C_cg, solver.C_MN, atol=1e-7 * np.abs(solver.C_MN).max())
+    warm, warm_iterations = conjugate_gradient_solve(
+        G_N, B, solver.lam_N, solver.lam_M, solver.alpha, C0=solver.C_MN, tol=1e-8
+    )
+    assert warm_iterations < iterations
+
+
+def test_both_directions_are_solved(pair):
+    M, bM, N, bN = pair
+    solver, _, paths = solver_with(pair)
+    reverse = CurveMapSolver(N.vertices, bN, M.vertices, bM, k=K)
+    reverse.add_curves([(p, p, 1.0) for p in paths])
+    np.testing.assert_allclose(solver.C_NM, reverse.C_MN, atol=1e-10)
+
+
+def test_incremental_edits_equal_a_fresh_solve(pair):
+    M, bM, N, bN = pair
+    solver, ids, paths = solver_with(pair, n_curves=4)
+    solver.remove_curve(ids[1])
+    new_path = curves_on(M, [ENDPOINTS[4]])[0]
+    solver.replace_curve(ids[2], new_path, new_path, weight=2.0)
+    fresh = CurveMapSolver(M.vertices, bM, N.vertices, bN, k=K)
+    fresh.add_curves([(paths[0], paths[0], 1.0), (new_path, new_path, 2.0), (paths[3], paths[3], 1.0)])
+    np.testing.assert_allclose(solver.C_MN, fresh.C_MN, atol=1e-10)
+    np.testing.assert_allclose(solver.C_NM, fresh.C_NM, atol=1e-10)
+
+
+def test_invariant_to_the_number_of_curves_and_weights(pair):
+    M, bM, N, bN = pair
+    solver, _, paths = solver_with(pair)
+    doubled = CurveMapSolver(M.vertices, bM, N.vertices, bN, k=K)
+    doubled.add_curves([(p, p, 1.0) for p in paths + paths])
+    np.testing.assert_allclose(doubled.C_MN, solver.C_MN, atol=1e-10)
+    heavier = CurveMapSolver(M.vertices, bM, N.vertices, bN, k=K)
+    heavier.add_curves([(paths[0], paths[0], 2.0)] + [(p, p, 1.0) for p in paths[1:]])
+    extra = CurveMapSolver(M.vertices, bM, N.vertices, bN, k=K)
+    extra.add_curves([(p, p, 1.0) for p in [paths[0]] + paths])
+    np.testing.assert_allclose(heavier.C_MN, extra.C_MN, atol=1e-10)
+
+
+def test_invariant_to_samples_per_curve(pair):
+    coarse, _, _ = solver_with(pair, samples=200)
+    fine, _, _ = solver_with(pair, samples=2000)
+    assert np.linalg.norm(coarse.C_MN - fine.C_MN) < 0.02 * np.linalg.norm(fine.C_MN)
+
+
+def test_invariant_to_mesh_scale(pair):
+    M, bM, N, bN = pair
+    big = ellipsoid(radii=(1.1, 0.6, 0.55), scale=250.0)
+    solver, _, paths = solver_with(pair)
+    scaled = CurveMapSolver(M.vertices, bM, big.vertices, basis_of(big), k=K)
+    scaled.add_curves([(p, p, 1.0) for p in paths])
+    signs = np.sign(np.sum(basis_of(big).evecs * bN.evecs, axis=0))[:K]  # eigenvectors are defined up to sign
+    np.testing.assert_allclose(scaled.C_MN * signs[:, None], solver.C_MN, atol=1e-6 * np.abs(solver.C_MN).max())
+
+
+def test_a_map_from_identical_curves_is_near_identity_on_the_same_shape(pair):
+    M, bM, _, _ = pair
+    solver = CurveMapSolver(M.vertices, bM, M.vertices, bM, k=K)
+    solver.add_curves([(p, p, 1.0) for p in curves_on(M, ENDPOINTS)])
+    assert np.linalg.norm(solver.C_MN - np.eye(K)) < 0.2 * np.sqrt(K)
+
+
+def test_no_curves_means_no_map_and_bad_edits_are_rejected(pair):
+    M, bM, N, bN = pair
+    solver = CurveMapSolver(M.vertices, bM, N.vertices, bN, k=K)
+    assert not solver.C_MN.any()
+    with pytest.raises(CurvefmError, match="no curve 'c9'") as info:
+        solver.remove_curve("c9")
+    assert info.value.kind == "not_found"
+    path = curves_on(M, [ENDPOINTS[0]])[0]
+    with pytest.raises(CurvefmError, match="weight must be a positive"):
+        solver.add_curve(path, path, weight=-1)
+    with pytest.raises(CurvefmError, match="exceeds the computed bases"):
+        CurveMapSolver(M.vertices, bM, N.vertices, bN, k=500)
