@@ -1,0 +1,78 @@
+"""The command line, run as a user runs it."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from shapes import ellipsoid
+
+from curvefm.mesh import load_mesh, save_mesh
+
+
+def curvefm(*args, data):
+    return subprocess.run(
+        [sys.executable, "-m", "curvefm.cli", "--data", str(data), *map(str, args)], capture_output=True, text=True
+    )
+
+
+@pytest.fixture(scope="module")
+def pair(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("pair")
+    save_mesh(ellipsoid(), folder / "source.off")
+    save_mesh(ellipsoid(radii=(1.2, 0.6, 0.5)), folder / "target.obj")
+    curves = {"curves": [
+        {"source": [0, 600], "target": [0, 600]},
+        {"source": [100, 900, 1100], "target": [100, 900, 1100]},
+        {"source": [40, 700], "target": [40, 700], "tracer": "anisotropic"},
+    ]}
+    (folder / "curves.json").write_text(json.dumps(curves))
+    return folder
+
+
+def test_match_writes_maps_and_a_textured_target(pair, tmp_path):
+    out = tmp_path / "out"
+    run = curvefm("match", pair / "source.off", pair / "target.obj", "--curves", pair / "curves.json", "--out", out,
+                  "--k", 30, data=tmp_path / "data")
+    assert run.returncode == 0, run.stderr
+    target = load_mesh(pair / "target.obj")
+    assert np.load(out / "C_source_to_target.npy").shape == (30, 30)
+    assert np.load(out / "C_target_to_source.npy").shape == (30, 30)
+    to_source = np.loadtxt(out / "map_target_to_source.txt", dtype=int)
+    assert to_source.shape == (target.n_vertices,) and to_source.min() >= 0 and to_source.max() < 1154
+    # same connectivity, so most target vertices should map close to their own id's position on the source
+    source = load_mesh(pair / "source.off")
+    dist = np.linalg.norm(source.vertices[to_source] - source.vertices, axis=1)
+    assert np.median(dist) < 0.2
+    textured = load_mesh(out / "target_textured.obj")
+    assert textured.uv is not None and textured.n_vertices == target.n_vertices
+    assert np.isfinite(textured.uv).all() and np.ptp(textured.uv[:, 1]) > 0.5
+
+
+@pytest.mark.parametrize(
+    "curves, message",
+    [
+        ({"curves": [{"source": [0, 99999], "target": [0, 600]}]}, "waypoint 99999 is out of range"),
+        ({"curves": [{"source": [0, 600], "target": [0, 600], "tracer": "magic"}]}, "unknown tracer 'magic'"),
+        ({"curves": [{"source": [0, 600]}]}, "curves.0.target: Field required"),
+        ({"curves": [{"source": [0, 5], "target": [0, 5], "explicit": True}]}, "not edge-connected"),
+    ],
+)
+def test_match_reports_bad_curves_clearly(pair, tmp_path, curves, message):
+    (tmp_path / "bad.json").write_text(json.dumps(curves))
+    run = curvefm("match", pair / "source.off", pair / "target.obj", "--curves", tmp_path / "bad.json", "--out",
+                  tmp_path / "out", "--k", 20, data=tmp_path / "data")
+    assert run.returncode == 2
+    assert message in run.stderr
+
+
+def test_evaluate_prints_json_errors(shared_data, tmp_path):
+    folder = shared_data / "nonisometric" / "pyfm_cat_lion"
+    run = curvefm("evaluate", folder / "cat-00.off", folder / "lion-00.off", "--curves", 5, "--k", 40, "--json",
+                  data=tmp_path / "data")
+    assert run.returncode == 0, run.stderr
+    report = json.loads(run.stdout)
+    assert report["ground_truth"] == "lion2cat"
+    errors = report["errors"]["source_to_target"]
+    assert 0 < errors["mean_area"] < 0.2 and len(errors["curve"]) == len(errors["radii"])
