@@ -1,33 +1,33 @@
-"""Solve the column-separable functional-map systems (DESIGN.md, "The mathematics in one screen").
+"""The column-separable functional-map systems (DESIGN.md, "The mathematics in one screen").
 
-Column ``j`` of ``C`` solves the SPD system
+Column ``j`` of ``C`` solves the symmetric positive definite system
 
-    (G + diag(E[:, j])) c_j = B[:, j],   E[i, j] = alpha * (lam_rows[i] - lam_cols[j])**2 + ridge.
+    (G + diag(E[:, j])) c_j = B[:, j],   E[i, j] = alpha * (lam_rows[i] - lam_cols[j])**2 + ridge,
 
-All ``n`` systems share ``G`` and differ only in their diagonal. Factorising each one (LAPACK ``dposv`` per
-column) costs ``n`` small factorisations that run far below matrix-product speed, so the main path is a
-preconditioned conjugate-gradient iteration on all columns at once, where each step is one ``k x k`` product
-with ``G`` and one with the preconditioner, and the preconditioner is exact for a few "anchor" columns:
+one Cholesky factorisation per column (LAPACK ``dposv``): exact, and backward stable however badly
+conditioned the system (systems built from one real curve reach condition numbers of 1e7-1e8).
 
-- The columns are sorted by ``lam_cols`` and cut into groups of about :data:`GROUP_SIZE` neighbours. Each group
-  uses the exact inverse of its middle column's matrix. Neighbouring columns' diagonals differ little, so
-  the preconditioned spectra are narrow; CG needs fewer iterations the closer a column is to its anchor.
-- A column stops when its relative residual ``||b - A c|| / ||b||`` falls below ``rtol`` (1e-12). The
-  returned columns are then checked on the true residual, recomputed from scratch; every column that fails
-  the check, broke down, or had not converged after :data:`MAX_ITER` steps (or once only a handful are left
-  and a direct solve is cheaper than more steps) is solved directly with LAPACK ``dposv``. So the result
-  satisfies the residual bound by construction, whatever the iteration did.
+Why not something cleverer. The ``n`` systems share ``G``, but their diagonals span the three-dimensional space
+of ``Lambda^2``, ``Lambda`` and ``I`` (a quadratic family in ``lam_cols[j]``), so no single factorisation or
+eigendecomposition of ``k x k`` matrices serves them all; the ``2k`` linearisation ``(T - mu I) z = f`` does,
+but its Hessenberg or Schur form alone costs more than all ``n`` Cholesky factorisations at ``k = 120``.
+Batched preconditioned CG on all columns at once (each step one product with ``G`` and one with the exact
+inverse of an "anchor" column's matrix, one anchor per 15 columns) needs 10-80 steps to reach a relative
+residual of 1e-12, which is what an error below 1e-8 of ``max |C|`` takes on systems from real curves; at
+``k = 120`` it ran at 0.5-1.4x the speed of this loop (0.5-0.8x at ``alpha`` = 10-100), so it was dropped.
 
-Why ``rtol`` is 1e-12 and not 1e-10: the systems built from real curves reach condition numbers of 1e7-1e8
-(one curve, ``alpha = 0.01``); at a relative residual of 1e-10 the error in ``C`` was up to 1e-6 of
-``max |C|``, at 1e-12 it stays below 1e-8 (see ``benchmarks/bench_column_solve.py``).
+Why ctypes. SciPy's f2py wrappers of ``dposv``/``dpotrf`` hold the GIL, so the two map directions could not
+run side by side on two cores. ``scipy.linalg.cython_lapack`` exports the same LAPACK functions as C function
+pointers; a call through ``ctypes`` releases the GIL, and it also skips the wrappers' argument copies. If the
+pointer cannot be had (another Python, a SciPy whose LAPACK takes 64-bit integers) the f2py wrapper is used.
 
-The ridge keeps every system positive definite when a column has no constraint in some direction, e.g. a
-direction in the null space of ``G`` along which ``lam_rows[i] == lam_cols[j]``: see :func:`column_ridge`.
+Run with single-threaded BLAS (``OPENBLAS_NUM_THREADS=1``): at these sizes OpenBLAS's own threads cannot help,
+and on a busy two-core machine they made factorisations of k >= 140 run 10-60 times slower.
 """
 
 from __future__ import annotations
 
+import ctypes
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -36,28 +36,48 @@ from scipy.linalg import lapack
 from curvefm.errors import CurvefmError
 
 RIDGE = 1e-10  # relative to the mean diagonal of the systems, see column_ridge
-RTOL = 1e-12
-GROUP_SIZE = 15  # columns per anchor
-MAX_ITER = 100
-DIRECT_MAX_K = 48  # below this, n direct solves cost less than the anchors and iteration overhead
-TAIL = 2  # when this few columns are still iterating, solve them directly
+PARALLEL_MIN_SIZE = 40 * 40  # smaller maps take under a millisecond: handing half to a thread costs more
 
 _pool: ThreadPoolExecutor | None = None
+
+
+def _gil_free_dposv():
+    """``dposv`` from ``scipy.linalg.cython_lapack`` as a ctypes function (8 pointer arguments), or None."""
+    try:
+        from scipy.linalg import cython_lapack
+
+        capsule = cython_lapack.__pyx_capi__["dposv"]
+        api = ctypes.pythonapi  # own prototypes, so that ctypes.pythonapi's shared ones stay untouched
+        get_name = ctypes.PYFUNCTYPE(ctypes.c_char_p, ctypes.py_object)(("PyCapsule_GetName", api))
+        get_pointer = ctypes.PYFUNCTYPE(ctypes.c_void_p, ctypes.py_object, ctypes.c_char_p)(
+            ("PyCapsule_GetPointer", api)
+        )
+        name = get_name(capsule)
+        # the integers must be C ints: (uplo, n, nrhs, a, lda, b, ldb, info)
+        if name.count(b"int *") != 5 or b"long" in name:
+            return None
+        return ctypes.CFUNCTYPE(None, *[ctypes.c_void_p] * 8)(get_pointer(capsule, name))
+    except (ImportError, AttributeError, KeyError, ValueError, TypeError):
+        return None
+
+
+_DPOSV = _gil_free_dposv()
 
 
 def column_ridge(G: np.ndarray, lam_rows: np.ndarray, lam_cols: np.ndarray, alpha: float) -> float:
     """The ridge added to every system: ``1e-10 * (trace(G) / k + alpha * mean((lam_rows_i - lam_cols_j)^2))``.
 
-    That is 1e-10 of the mean diagonal entry over all ``k x n`` systems: invisible next to any entry that
-    carries information (it shifts the solution by about 1e-10 relative where the system is well posed), yet
-    it bounds the condition number of a singular system by about 1e10 so that it stays solvable in float64.
+    That is 1e-10 of the mean diagonal entry over all ``k x n`` systems. It keeps a system positive definite
+    when a direction carries no information at all (in the null space of ``G`` and with
+    ``lam_rows[i] == lam_cols[j]``), bounding its condition number by about 1e11 so that Cholesky still
+    succeeds in float64, while it moves any well-determined solution by only about 1e-10 relative.
     """
-    d2 = np.mean(np.subtract.outer(lam_rows, lam_cols) ** 2)
-    return RIDGE * (float(np.trace(G)) / len(G) + alpha * float(d2))
+    scale = float(np.trace(G)) / len(G) + alpha * float(np.mean(np.subtract.outer(lam_rows, lam_cols) ** 2))
+    return RIDGE * (scale if scale > 0 else 1.0)
 
 
 def column_diagonals(G: np.ndarray, lam_rows: np.ndarray, lam_cols: np.ndarray, alpha: float) -> np.ndarray:
-    """``E`` (k x n): column ``j`` of the result is the diagonal added to ``G`` in system ``j``."""
+    """``E`` (k x n): column ``j`` is the diagonal added to ``G`` in system ``j``, ridge included."""
     E = np.subtract.outer(lam_rows, lam_cols)
     E *= E
     E *= alpha
@@ -71,30 +91,30 @@ def solve_columns(
     lam_rows: np.ndarray,
     lam_cols: np.ndarray,
     alpha: float,
-    C0: np.ndarray | None = None,
     *,
-    rtol: float = RTOL,
-    stats: dict | None = None,
+    threads: int = 1,
 ) -> np.ndarray:
     """``C`` (k x n) whose column ``j`` solves ``(G + diag(E[:, j])) c_j = B[:, j]`` (see the module doc).
 
-    ``G`` (k x k) is symmetric positive semi-definite, ``B`` is k x n, ``lam_rows`` has k entries (the
-    eigenvalues of the shape whose coefficients are the rows of ``C``), ``lam_cols`` has n. ``C0`` is an
-    optional starting guess, e.g. the map before the last curve edit. Every column of the result has
-    ``||B[:, j] - A_j C[:, j]|| <= rtol * ||B[:, j]||``. ``stats``, if given, receives ``iterations``,
-    ``direct_columns`` and ``method``.
+    ``G`` (k x k) is symmetric positive semi-definite (one triangle is read), ``B`` is k x n, ``lam_rows``
+    has k entries (eigenvalues of the shape whose coefficients are the rows of ``C``) and ``lam_cols`` n.
+    ``threads=2`` (or more) splits the columns over the calling thread and one worker thread.
     """
     G, B, lam_rows, lam_cols = _checked(G, B, lam_rows, lam_cols, alpha)
-    k, n = B.shape
-    E = column_diagonals(G, lam_rows, lam_cols, alpha)
-    info = {"iterations": 0, "direct_columns": n, "method": "direct"}
-    if k <= DIRECT_MAX_K or n < 2 * GROUP_SIZE:
-        C = _solve_direct(G, E, B, np.arange(n), np.empty_like(B))
+    if B.size == 0:
+        return np.zeros(B.shape)
+    ET = np.ascontiguousarray(column_diagonals(G, lam_rows, lam_cols, alpha).T)
+    BT = np.ascontiguousarray(B.T)
+    CT = np.empty_like(BT)
+    n = len(BT)
+    if threads > 1 and B.size >= PARALLEL_MIN_SIZE and _DPOSV is not None:
+        half = n // 2
+        other = _worker().submit(_solve_rows, G, ET, BT, CT, range(half, n))
+        _solve_rows(G, ET, BT, CT, range(half))
+        other.result()
     else:
-        C = _solve_iterative(G, E, B, lam_cols, C0, rtol, info)
-    if stats is not None:
-        stats.update(info)
-    return C
+        _solve_rows(G, ET, BT, CT, range(n))
+    return CT.T.copy()
 
 
 def solve_both(
@@ -104,158 +124,80 @@ def solve_both(
     lam_N: np.ndarray,
     lam_M: np.ndarray,
     alpha: float,
-    C0_MN: np.ndarray | None = None,
-    C0_NM: np.ndarray | None = None,
-    *,
-    rtol: float = RTOL,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Both map directions at once: ``(C_MN, C_NM)``, the second direction in a worker thread.
+    """Both map directions, side by side on two threads: ``(C_MN, C_NM)``.
 
-    ``C_MN`` (k_N x k_M) takes coefficients on M to coefficients on N: ``G = G_N``, right-hand sides ``B``,
-    rows ``lam_N``, columns ``lam_M``. ``C_NM`` (k_M x k_N) is the reverse: ``G_M``, ``B.T``, rows ``lam_M``,
-    columns ``lam_N``. The matrix products and element-wise steps release the GIL, so the two overlap.
+    ``C_MN`` (k_N x k_M) takes coefficients on M to coefficients on N: ``G = G_N``, right-hand sides ``B``
+    (k_N x k_M), rows ``lam_N``, columns ``lam_M``. ``C_NM`` (k_M x k_N) is the reverse map: ``G = G_M``,
+    right-hand sides ``B.T``, rows ``lam_M``, columns ``lam_N``.
     """
-    global _pool
-    if _pool is None:
-        _pool = ThreadPoolExecutor(1, thread_name_prefix="curvefm-columns")
     B = np.asarray(B, dtype=np.float64)
-    reverse = _pool.submit(solve_columns, G_M, B.T, lam_M, lam_N, alpha, C0_NM, rtol=rtol)
-    C_MN = solve_columns(G_N, B, lam_N, lam_M, alpha, C0_MN, rtol=rtol)
+    if _DPOSV is None or B.size < PARALLEL_MIN_SIZE:  # the f2py fallback holds the GIL
+        return solve_columns(G_N, B, lam_N, lam_M, alpha), solve_columns(G_M, B.T, lam_M, lam_N, alpha)
+    reverse = _worker().submit(solve_columns, G_M, B.T, lam_M, lam_N, alpha)
+    C_MN = solve_columns(G_N, B, lam_N, lam_M, alpha)
     return C_MN, reverse.result()
 
 
+def _worker() -> ThreadPoolExecutor:
+    global _pool
+    if _pool is None:
+        _pool = ThreadPoolExecutor(1, thread_name_prefix="curvefm-columns")
+    return _pool
+
+
 def _checked(G, B, lam_rows, lam_cols, alpha):
-    G = np.asarray(G, dtype=np.float64)
+    G = np.ascontiguousarray(G, dtype=np.float64)
     B = np.asarray(B, dtype=np.float64)
     lam_rows = np.asarray(lam_rows, dtype=np.float64).ravel()
     lam_cols = np.asarray(lam_cols, dtype=np.float64).ravel()
     k = len(lam_rows)
     if G.shape != (k, k) or B.shape != (k, len(lam_cols)):
         raise CurvefmError(
-            f"column solve: G is {G.shape}, B is {B.shape}, {k} row eigenvalues and {len(lam_cols)} column "
-            f"eigenvalues; expected G (k x k), B (k x n), k and n eigenvalues"
+            f"column solve: G is {G.shape}, B is {B.shape}, with {k} row and {len(lam_cols)} column "
+            "eigenvalues; expected G (k x k) and B (k x n) for k row and n column eigenvalues"
         )
-    if not alpha >= 0:
-        raise CurvefmError(f"column solve: alpha must be >= 0, got {alpha}")
+    if not (np.isfinite(alpha) and alpha >= 0):
+        raise CurvefmError(f"column solve: alpha must be a finite number >= 0, got {alpha}")
+    for name, array in (("G", G), ("B", B), ("row eigenvalues", lam_rows), ("column eigenvalues", lam_cols)):
+        if not np.isfinite(array).all():
+            raise CurvefmError(f"column solve: {name} must be finite (found NaN or infinity)")
     return G, B, lam_rows, lam_cols
 
 
-def _solve_direct(G: np.ndarray, E: np.ndarray, B: np.ndarray, cols: np.ndarray, out: np.ndarray) -> np.ndarray:
-    """One LAPACK ``dposv`` per column in ``cols``, written into ``out``."""
-    diag = np.arange(len(G)) * (len(G) + 1)
-    for j in cols:
-        A = G.copy()
-        A.flat[diag] += E[:, j]
-        _, x, info = lapack.dposv(A, B[:, j], lower=1)
-        if info != 0:
-            raise CurvefmError(f"column solve: system {j} is not positive definite (is G symmetric PSD?)")
-        out[:, j] = x
-    return out
-
-
-def _anchor_inverses(G: np.ndarray, E: np.ndarray, bounds: np.ndarray) -> np.ndarray:
-    """Exact inverses of the systems of the middle column of each group, stacked (groups x k x k)."""
+def _solve_rows(G: np.ndarray, ET: np.ndarray, BT: np.ndarray, CT: np.ndarray, rows: range) -> None:
+    """Solve the systems ``rows`` (rows of ``ET``, ``BT``) into the same rows of ``CT``."""
     k = len(G)
-    diag = np.arange(k) * (k + 1)
-    invs = np.empty((len(bounds) - 1, k, k))
-    for g in range(len(bounds) - 1):
-        A = G.copy()
-        A.flat[diag] += E[:, (bounds[g] + bounds[g + 1]) // 2]
-        c, info = lapack.dpotrf(A, lower=1, overwrite_a=1)
-        if info == 0:
-            invs[g], info = lapack.dpotri(c, lower=1, overwrite_c=1)
-        if info != 0:
-            raise CurvefmError("column solve: a system is not positive definite (is G symmetric PSD?)")
-    lower = np.tri(k, dtype=bool)  # dpotri fills the lower triangle only
-    return np.where(lower, invs, invs.transpose(0, 2, 1))
+    if _DPOSV is None:
+        for j in rows:
+            A = G.copy()
+            A.flat[:: k + 1] += ET[j]
+            _, x, info = lapack.dposv(A, BT[j], lower=1)
+            _raise_if_failed(info, j)
+            CT[j] = x
+        return
+    a = np.empty((k, k), order="F")  # overwritten by the factor in every call
+    x = np.empty(k)  # right-hand side in, solution out
+    diagonal = a.reshape(-1, order="F")[:: k + 1]  # a view
+    ints = np.array([k, 1, 0], dtype=np.intc)  # n (also lda, ldb), nrhs, info
+    p = ints.ctypes.data
+    size = ints.itemsize
+    args = (b"L", p, p + size, a.ctypes.data, p, x.ctypes.data, p, p + 2 * size)
+    Gt = G.T  # G is symmetric, and G.T has the Fortran layout of `a`: a plain memory copy
+    for j in rows:
+        np.copyto(a, Gt)
+        diagonal += ET[j]
+        x[:] = BT[j]
+        _DPOSV(*args)
+        _raise_if_failed(int(ints[2]), j)
+        CT[j] = x
 
 
-def _solve_iterative(G, E, B, lam_cols, C0, rtol, info) -> np.ndarray:
-    k, n = B.shape
-    order = np.argsort(lam_cols, kind="stable")
-    E, Bs = E[:, order], B[:, order]
-    n_groups = max(1, round(n / GROUP_SIZE))
-    bounds = np.linspace(0, n, n_groups + 1).round().astype(int)
-    group = np.repeat(np.arange(n_groups), np.diff(bounds))
-    invs = _anchor_inverses(G, E, bounds)
-
-    X = np.zeros((k, n)) if C0 is None else np.array(C0, dtype=np.float64)[:, order]
-    target = rtol**2 * np.einsum("ij,ij->j", Bs, Bs)
-    R = Bs - G @ X - E * X if C0 is not None else Bs.copy()
-    act = np.flatnonzero(np.einsum("ij,ij->j", R, R) > target)
-    failed: list[np.ndarray] = []
-    it = 0
-    if len(act) > TAIL:
-        it, act, bad = _pcg(G, E, X, R, act, target, group, invs)
-        failed.append(bad)
-
-    # Verify every column on its true residual; whatever fails (or never converged) is solved directly.
-    R = Bs - G @ X - E * X
-    unsure = np.einsum("ij,ij->j", R, R) > 4 * target
-    unsure[act] = True
-    for bad in failed:
-        unsure[bad] = True
-    direct = np.flatnonzero(unsure)
-    _solve_direct(G, E, Bs, direct, X)
-    info.update(iterations=it, direct_columns=len(direct), method="pcg-anchors")
-    C = np.empty_like(X)
-    C[:, order] = X
-    return C
-
-
-def _pcg(G, E, X, R, act, target, group, invs):
-    """Batched preconditioned CG on the columns ``act`` of ``X`` (updated in place).
-
-    Columns live compacted (only the active ones, in group order) and leave the working set once converged;
-    compaction copies every working array, so converged columns are first frozen (zero step) and only swept
-    out once enough of them have accumulated. Returns (iterations, still active columns, broken-down ones).
-    """
-    n_groups = len(invs)
-
-    def precondition(Rw, gw):
-        Z = np.empty_like(Rw)
-        cuts = np.searchsorted(gw, np.arange(n_groups + 1))
-        for g in range(n_groups):
-            if cuts[g + 1] > cuts[g]:
-                np.matmul(invs[g], Rw[:, cuts[g] : cuts[g + 1]], out=Z[:, cuts[g] : cuts[g + 1]])
-        return Z
-
-    Xw, Rw, Ew, tw, gw = X[:, act], R[:, act], E[:, act], target[act], group[act]
-    Z = precondition(Rw, gw)
-    P = Z
-    rz = np.einsum("ij,ij->j", Rw, Z)
-    frozen = np.zeros(len(act), dtype=bool)
-    broken: list[np.ndarray] = []
-    AP, tmp = np.empty_like(P), np.empty_like(P)
-    it = 0
-    while it < MAX_ITER:
-        it += 1
-        np.matmul(G, P, out=AP)
-        np.multiply(Ew, P, out=tmp)
-        AP += tmp
-        pap = np.einsum("ij,ij->j", P, AP)
-        ok = (pap > 0) & ~frozen  # pap <= 0 only by rounding on a nearly singular column: solve it directly
-        step = np.divide(rz, pap, out=np.zeros_like(rz), where=ok)
-        np.multiply(P, step, out=tmp)
-        Xw += tmp
-        np.multiply(AP, step, out=tmp)
-        Rw -= tmp
-        converged = np.einsum("ij,ij->j", Rw, Rw) <= tw
-        broken.append(act[~ok & ~frozen])
-        frozen |= converged | ~ok
-        n_left = len(act) - int(frozen.sum())
-        if n_left <= TAIL or frozen.sum() >= max(4, len(act) // 8):
-            X[:, act[frozen]] = Xw[:, frozen]
-            keep = ~frozen
-            act, Xw, Rw, Ew, tw, gw, rz, P = (a[..., keep] for a in (act, Xw, Rw, Ew, tw, gw, rz, P))
-            frozen = frozen[keep]
-            AP, tmp = np.empty_like(P), np.empty_like(P)
-            if n_left <= TAIL:
-                break
-        Z = precondition(Rw, gw)
-        rz_new = np.einsum("ij,ij->j", Rw, Z)
-        P *= np.divide(rz_new, rz, out=np.zeros_like(rz), where=rz != 0)
-        P += Z
-        rz = rz_new
-    X[:, act] = Xw
-    return it, act[~frozen], np.concatenate(broken)
+def _raise_if_failed(info: int, j: int) -> None:
+    if info > 0:
+        raise CurvefmError(
+            f"column solve: system {j} is not positive definite (leading minor {info}); "
+            "G must be symmetric positive semi-definite"
+        )
+    if info < 0:
+        raise RuntimeError(f"LAPACK dposv rejected argument {-info}")

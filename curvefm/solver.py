@@ -140,11 +140,7 @@ class CurveMapSolver:
             self.C_MN, self.C_NM = np.zeros((self.k, self.k)), np.zeros((self.k, self.k))
             return
         G_M, G_N, B = self.normal_equations()
-        warm = self.C_MN.any()  # the map before this edit is a good start for the iterative path
-        self.C_MN, self.C_NM = solve_both(
-            G_N, G_M, B, self.lam_N, self.lam_M, self.alpha,
-            self.C_MN if warm else None, self.C_NM if warm else None,
-        )
+        self.C_MN, self.C_NM = solve_both(G_N, G_M, B, self.lam_N, self.lam_M, self.alpha)
 
     def energy(self, C_MN: np.ndarray) -> float:
         """E(C_MN) up to the constant sum_l w~_l ||PhiBar_l||^2 / s (so it may be negative)."""

@@ -1,0 +1,91 @@
+"""Curve-update latency (add a curve, both directions solved) on FAUST tr_reg_000 -> tr_reg_011.
+
+Compares, at k = 30, 60, 120, 200: our update (restriction + re-sum + per-column exact systems, both
+directions), the paper's conjugate gradients (Algorithm 2) warm-started from the previous map, both
+directions, and a dense direct solve of the k^2 x k^2 system (k <= 60). Also: texture transfer to a
+~30k-vertex mesh (TOSCA cat). Prints one JSON object.
+"""
+
+import json
+
+import numpy as np
+from common import bench_store, machine, median_ms, shared_data
+
+from curvefm.evaluation import farthest_point_sampling
+from curvefm.mesh import load_mesh
+from curvefm.paths import shortest_path
+from curvefm.solver import CurveMapSolver, conjugate_gradient_solve
+from curvefm.transfer import FunctionTransfer
+
+REPEAT = 15
+
+
+def curve_paths(mesh, count):
+    ends = farthest_point_sampling(mesh, 2 * count)
+    return [shortest_path(mesh.edge_graph, a, b) for a, b in zip(ends[0::2], ends[1::2], strict=True)]
+
+
+def update_latency(M, bM, N, bN, k, paths):
+    solver = CurveMapSolver(M.vertices, bM, N.vertices, bN, k=k)
+    solver.add_curves([(p, p, 1.0) for p in paths[:-1]])
+    last = paths[-1]
+
+    def add_and_remove():
+        cid = solver.add_curve(last, last)
+        solver.remove_curve(cid)
+
+    ours = median_ms(add_and_remove, REPEAT) / 2  # two updates per call
+    solver.add_curve(last, last)
+    G_M, G_N, B = solver.normal_equations()
+    previous = CurveMapSolver(M.vertices, bM, N.vertices, bN, k=k)
+    previous.add_curves([(p, p, 1.0) for p in paths[:-1]])
+    iterations = []
+
+    def paper_cg():
+        C1, it1 = conjugate_gradient_solve(G_N, B, solver.lam_N, solver.lam_M, solver.alpha, C0=previous.C_MN)
+        C2, it2 = conjugate_gradient_solve(G_M, B.T, solver.lam_M, solver.lam_N, solver.alpha, C0=previous.C_NM)
+        iterations.append(it1 + it2)
+        return C1
+
+    cg = median_ms(paper_cg, 3 if k >= 120 else REPEAT)
+    C_cg = paper_cg()
+    result = {
+        "k": k,
+        "ours_ms": round(ours, 2),
+        "paper_cg_warm_ms": round(cg, 2),
+        "paper_cg_iterations_both": int(np.median(iterations)),
+        "speedup_vs_cg": round(cg / ours, 1),
+        "max_rel_diff_vs_cg": float(np.abs(C_cg - solver.C_MN).max() / np.abs(solver.C_MN).max()),
+    }
+    if k <= 60:
+        D = (solver.lam_N[:, None] - solver.lam_M[None, :]) ** 2
+
+        def dense():
+            H = np.kron(np.eye(k), G_N) + solver.alpha * np.diag(D.T.ravel())
+            return np.linalg.solve(H, B.T.ravel())
+
+        result["dense_k2_one_direction_ms"] = round(median_ms(dense, 3), 1)
+    return result
+
+
+def transfer_latency(store):
+    cat = load_mesh(shared_data() / "tosca" / "cat0.off")
+    basis = store.ensure_basis(cat, 120)
+    uv = cat.vertices[:, :2]
+    carrier = FunctionTransfer(basis, basis, uv)
+    C = np.eye(120) + 0.01 * np.random.default_rng(0).standard_normal((120, 120))
+    return {"vertices": cat.n_vertices, "k": 120, "uv_transfer_ms": round(median_ms(lambda: carrier.apply(C), 50), 2)}
+
+
+def main():
+    data, store = shared_data(), bench_store()
+    M, N = load_mesh(data / "faust" / "tr_reg_000.off"), load_mesh(data / "faust" / "tr_reg_011.off")
+    bM, bN = store.ensure_basis(M, 200), store.ensure_basis(N, 200)
+    paths = curve_paths(M, 10)
+    updates = [update_latency(M, bM, N, bN, k, paths) for k in (30, 60, 120, 200)]
+    print(json.dumps({"benchmark": "curve_update", "machine": machine(), "pair": "FAUST tr_reg_000 -> tr_reg_011",
+                      "curves": 10, "update_both_directions": updates, "transfer": transfer_latency(store)}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
