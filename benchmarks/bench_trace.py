@@ -18,10 +18,10 @@ import time
 from pathlib import Path
 
 import numpy as np
-from curvefm.plugins import tracers
 from scipy.sparse.csgraph import dijkstra
 
 from curvefm.mesh import load_mesh
+from curvefm.plugins import tracers
 
 DEFAULT_MESH = Path(__file__).resolve().parents[2] / "shared" / "data" / "tosca" / "cat0.off"
 

@@ -1,4 +1,8 @@
-"""The ``curvefm`` command line."""
+"""The ``curvefm`` command line.
+
+``serve`` and ``worker`` start the service and the queue workers; they import ``curvefm.service`` and
+``curvefm.workers`` inside the command, so the library itself never depends on them.
+"""
 
 from __future__ import annotations
 
@@ -79,12 +83,27 @@ def cmd_plugins(args) -> int:
     return 0
 
 
+def cmd_serve(args) -> int:
+    from curvefm.service.app import serve_main
+
+    serve_main(args.host, args.port, args.data, args.redis_url, args.demo, args.max_upload_bytes, args.log_level)
+    return 0
+
+
+def cmd_worker(args) -> int:
+    from curvefm.workers.worker import worker_main
+
+    worker_main(args.redis_url, args.queues, name=args.name, burst=args.burst)
+    return 0
+
+
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="curvefm", description=__doc__)
-    p.add_argument("--data", help="data directory for meshes and cached bases (default $CURVEFM_DATA)")
+    data = argparse.ArgumentParser(add_help=False)
+    data.add_argument("--data", help="data directory for meshes, bases and sessions (default $CURVEFM_DATA)")
     sub = p.add_subparsers(dest="command", required=True)
 
-    m = sub.add_parser("match", help="compute maps between two meshes from corresponding curves")
+    m = sub.add_parser("match", parents=[data], help="compute maps between two meshes from corresponding curves")
     m.add_argument("source")
     m.add_argument("target")
     m.add_argument("--curves", required=True, help='JSON: {"curves": [{"source": [i, j], "target": [p, q]}]}')
@@ -96,7 +115,7 @@ def parser() -> argparse.ArgumentParser:
     m.add_argument("--refine-params", default="{}", help="converter parameters as JSON")
     m.set_defaults(run=cmd_match)
 
-    e = sub.add_parser("evaluate", help="match a pair with known ground truth and print its geodesic error")
+    e = sub.add_parser("evaluate", parents=[data], help="score a pair with known ground truth (../shared/data)")
     e.add_argument("source")
     e.add_argument("target")
     e.add_argument("--curves", type=int, default=10, help="number of curves from the ground truth")
@@ -104,6 +123,23 @@ def parser() -> argparse.ArgumentParser:
     e.add_argument("--alpha", type=float, default=DEFAULT_ALPHA)
     e.add_argument("--json", action="store_true", help="print the full report as JSON")
     e.set_defaults(run=cmd_evaluate)
+
+    s = sub.add_parser("serve", parents=[data], help="run the HTTP API and web UI (jobs in-process without Redis)")
+    s.add_argument("--host", default="127.0.0.1")
+    s.add_argument("--port", type=int, default=8000)
+    s.add_argument("--redis-url", help="send jobs to RQ on this Redis (default $CURVEFM_REDIS_URL; none: in-process)")
+    s.add_argument("--demo", action=argparse.BooleanOptionalAction, default=False,
+                   help="add two generated shapes and a ready session 'demo'")
+    s.add_argument("--max-upload-bytes", type=int, help="default $CURVEFM_MAX_UPLOAD_BYTES or 200 MB")
+    s.add_argument("--log-level", default="info")
+    s.set_defaults(run=cmd_serve)
+
+    w = sub.add_parser("worker", help="run an RQ worker on the project's queues")
+    w.add_argument("--redis-url", help="Redis URL (default $CURVEFM_REDIS_URL)")
+    w.add_argument("--queues", nargs="+", help="queue names (default: the project's queues)")
+    w.add_argument("--name", help="worker name (default: chosen by RQ)")
+    w.add_argument("--burst", action="store_true", help="exit once the queues are empty")
+    w.set_defaults(run=cmd_worker)
 
     pl = sub.add_parser("plugins", help="list installed tracers, bases and converters with their parameters")
     pl.add_argument("--json", action="store_true")

@@ -108,8 +108,9 @@ class Store:
         return self.root / "bases" / mesh_hash / f"{plugin}-k{k}-{params_key(params)}.npz"
 
     def find_basis(self, mesh_hash: str, k: int, plugin: str = "laplace-beltrami", params: dict | None = None):
-        """A stored basis with at least k functions (truncated to k), or None."""
-        params = params or {}
+        """A stored basis with at least k functions (truncated to k), or None. ``params`` default to the
+        plugin's defaults, the form :meth:`ensure_basis` stores under."""
+        params = registry.get("basis", plugin).parse_params(params).model_dump()
         folder = self.root / "bases" / mesh_hash
         best = None
         for path in folder.glob(f"{plugin}-k*-{params_key(params)}.npz"):
@@ -144,7 +145,7 @@ class Store:
         parsed = basis_plugin.parse_params(params)
         canonical = parsed.model_dump()
         mesh_hash = self.put_mesh(mesh)
-        found = self.find_basis(mesh_hash, k, plugin, canonical)
+        found = self.find_basis(mesh_hash, k, plugin, params)
         if found is not None:
             progress(1.0, "basis found in the store")
             return found

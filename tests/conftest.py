@@ -1,8 +1,15 @@
 """Fixtures shared by the test suite."""
 
+import contextlib
 import os
+import signal
+import socket
+import subprocess
+import sys
+import time
 from pathlib import Path
 
+import httpx
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
@@ -19,3 +26,185 @@ def shared_data() -> Path:
     if not path.is_dir():
         pytest.skip(f"shared data folder {path} is absent (set CURVEFM_SHARED_DATA)")
     return path
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Service tests: real Redis, real `python -m curvefm.service` / `python -m curvefm.workers` processes.
+
+API_COMMAND = ["python", "-m", "curvefm.service"]
+WORKER_COMMAND = ["python", "-m", "curvefm.workers"]
+REDIS_URL = os.environ.get("CURVEFM_TEST_REDIS_URL", "redis://127.0.0.1:6379/0")
+
+
+@pytest.fixture(scope="session")
+def redis_url() -> str:
+    import redis
+
+    try:
+        redis.Redis.from_url(REDIS_URL, socket_connect_timeout=2).ping()
+    except redis.RedisError as exc:
+        pytest.skip(f"no Redis at {REDIS_URL} ({exc}); .ci/run starts one")
+    return REDIS_URL
+
+
+@pytest.fixture
+def redis_prefix(redis_url: str):
+    """A queue-name prefix of this test only; afterwards every Redis key of it (queues, registries, jobs,
+    workers, our own keys) is deleted, and nothing else is touched."""
+    import uuid
+
+    import redis
+
+    prefix = f"cfmtest-{uuid.uuid4().hex[:10]}-"
+    yield prefix
+    connection = redis.Redis.from_url(redis_url)
+    job_ids = [
+        key.decode().split(":")[2]
+        for key in connection.scan_iter("rq:job:*", count=1000)
+        if key.count(b":") == 2 and (connection.hget(key, "origin") or b"").decode().startswith(prefix)
+    ]
+    for pattern in [f"*{job_id}*" for job_id in job_ids] + [f"*{prefix}*"]:
+        for key in connection.scan_iter(pattern, count=1000):
+            connection.delete(key)
+    for registry in ("rq:workers", "rq:queues"):
+        for member in connection.smembers(registry):
+            if prefix.encode() in member:
+                connection.srem(registry, member)
+
+
+class Api:
+    """A running API process and an HTTP client for it."""
+
+    def __init__(self, process: subprocess.Popen, url: str, log: Path):
+        self.process, self.url, self.log = process, url, log
+        self.client = httpx.Client(base_url=url, timeout=120)
+
+    def upload(self, path: Path) -> str:
+        with open(path, "rb") as f:
+            response = self.client.post("/shapes", files={"file": (path.name, f)})
+        assert response.status_code in (200, 201), response.text
+        return response.json()["id"]
+
+    def demo_pair(self, folder: Path, k: int, suffix: str = ".off") -> tuple[list[str], str]:
+        """Upload the two generated demo shapes (4098 vertices, same ids), compute their bases and create a
+        session; return the shape ids and the session id."""
+        from curvefm.mesh import save_mesh
+        from curvefm.service.demo import demo_shapes
+
+        ids = []
+        for mesh in demo_shapes():
+            save_mesh(mesh, folder / f"{mesh.name}{suffix}")
+            ids.append(self.upload(folder / f"{mesh.name}{suffix}"))
+            job = self.client.post(f"/shapes/{ids[-1]}/bases", json={"k": k}).raise_for_status().json()
+            assert self.wait_job(job["id"])["state"] == "finished"
+        session = self.client.post("/sessions", json={"source": ids[0], "target": ids[1], "k": k})
+        return ids, session.raise_for_status().json()["id"]
+
+    def wait_job(self, job_id: str, timeout: float = 120, until=("finished", "failed", "canceled")) -> dict:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            info = self.client.get(f"/jobs/{job_id}").raise_for_status().json()
+            if info["state"] in until:
+                return info
+            time.sleep(0.1)
+        raise AssertionError(f"job {job_id} still {info['state']} after {timeout} s: {info}")
+
+
+class Processes:
+    """Starts service processes in their own process groups; kills every one of them at teardown."""
+
+    api_command, worker_command = API_COMMAND, WORKER_COMMAND
+
+    def __init__(self, folder: Path):
+        self.folder = folder
+        self.started: list[subprocess.Popen] = []
+
+    def start(self, args: list[str], name: str, env: dict[str, str] | None = None) -> subprocess.Popen:
+        log = self.folder / f"{name}.log"
+        process = subprocess.Popen(
+            [sys.executable, *args[1:]] if args[0] == "python" else args,
+            env={**os.environ, **(env or {})},
+            stdout=open(log, "ab"),  # noqa: SIM115  (the child holds it; closed when the process ends)
+            stderr=subprocess.STDOUT,
+        )
+        self.started.append(process)
+        return process
+
+    def api(
+        self, data_dir: Path, redis_url: str | None = None, env: dict[str, str] | None = None, args=()
+    ) -> Api:
+        port = free_port()
+        args = [*API_COMMAND, "--host", "127.0.0.1", "--port", str(port), "--data", str(data_dir), *args]
+        if redis_url:
+            args += ["--redis-url", redis_url]
+        name = f"api-{port}"
+        process = self.start(args, name, env)
+        api = Api(process, f"http://127.0.0.1:{port}", self.folder / f"{name}.log")
+        wait_until_healthy(api)
+        return api
+
+    def worker(self, redis_url: str, prefix: str, name: str) -> subprocess.Popen:
+        args = [*WORKER_COMMAND, "--redis-url", redis_url, "--name", f"{prefix}{name}"]
+        return self.start(args, f"worker-{name}", {"CURVEFM_QUEUE_PREFIX": prefix})
+
+    @staticmethod
+    def kill(process: subprocess.Popen) -> None:
+        """SIGKILL the process and all its descendants, as a crash of its machine would (an RQ work horse
+        runs in a process group of its own, so killing the worker's group alone would leave it running)."""
+        for pid in [*descendants(process.pid), process.pid]:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+        process.wait(timeout=30)
+
+    def stop_all(self) -> None:
+        for process in self.started:
+            self.kill(process)
+
+
+def descendants(pid: int) -> list[int]:
+    children: dict[int, list[int]] = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        with contextlib.suppress(OSError, IndexError, ValueError):
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+            children.setdefault(int(fields[1]), []).append(int(stat.parent.name))
+    found, frontier = [], [pid]
+    while frontier:
+        frontier = [child for parent in frontier for child in children.get(parent, [])]
+        found += frontier
+    return found
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def wait_until_healthy(api: Api, timeout: float = 60) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if api.process.poll() is not None:
+            log = api.log.read_text()[-3000:]
+            raise AssertionError(f"the API exited with {api.process.returncode}:\n{log}")
+        try:
+            if api.client.get("/health", timeout=2).status_code == 200:
+                return
+        except httpx.TransportError:
+            pass
+        time.sleep(0.1)
+    raise AssertionError(f"the API did not answer within {timeout} s:\n{api.log.read_text()[-3000:]}")
+
+
+@pytest.fixture
+def processes(tmp_path: Path):
+    runner = Processes(tmp_path)
+    yield runner
+    runner.stop_all()
+
+
+@pytest.fixture(scope="module")
+def module_processes(tmp_path_factory):
+    """Like ``processes``, shared by the tests of one module (one server for many quick requests)."""
+    runner = Processes(tmp_path_factory.mktemp("processes"))
+    yield runner
+    runner.stop_all()

@@ -13,7 +13,7 @@ from curvefm.mesh import load_mesh, save_mesh
 
 def curvefm(*args, data):
     return subprocess.run(
-        [sys.executable, "-m", "curvefm.cli", "--data", str(data), *map(str, args)], capture_output=True, text=True
+        [sys.executable, "-m", "curvefm.cli", *map(str, args), "--data", str(data)], capture_output=True, text=True
     )
 
 

@@ -6,14 +6,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from curvefm.plugins import tracers
-from curvefm.plugins.tracers import ANISOTROPIC, GEODESIC
 from scipy.sparse.csgraph import dijkstra
 
 from curvefm import registry
 from curvefm.errors import CurvefmError
 from curvefm.mesh import build_mesh, load_mesh
 from curvefm.paths import check_edge_path
+from curvefm.plugins import tracers
+from curvefm.plugins.tracers import ANISOTROPIC, GEODESIC
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 

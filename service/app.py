@@ -1,0 +1,105 @@
+"""The FastAPI application: ``create_app(settings)`` and ``serve_main`` (what ``curvefm serve`` runs)."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+from pathlib import Path
+
+from fastapi import FastAPI
+from fastapi.responses import HTMLResponse
+
+from curvefm.errors import CurvefmError
+from curvefm.service import routes_jobs, routes_sessions, routes_shapes
+from curvefm.service.deps import start_services
+from curvefm.service.errors import error_response, install_error_handlers
+from curvefm.service.settings import Settings
+
+STATIC_DIR = Path(__file__).parent / "static"
+PLACEHOLDER_PAGE = """<!doctype html><html><head><meta charset="utf-8"><title>curvefm</title></head><body>
+<h1>curvefm</h1><p>The web UI is not built yet. The HTTP API is documented at <a href="/docs">/docs</a>.</p>
+</body></html>"""
+DESCRIPTION = """Interactive curve-constrained functional maps between 3D shapes.
+
+Upload shapes, request their bases (a job), create a session on a pair, add corresponding curves (answered at
+once), fetch the map or a transferred function, and request pointwise maps (a job). Vertex ids are 0-based
+ids in the uploaded files. Errors are JSON: `{"error": kind, "detail": message}`."""
+
+
+class BodySizeLimit:
+    """Reject requests whose declared body is larger than the upload limit before reading them (413)."""
+
+    def __init__(self, app, limit: int):
+        self.app, self.limit = app, limit
+
+    async def __call__(self, scope, receive, send) -> None:
+        if scope["type"] == "http":
+            declared = dict(scope["headers"]).get(b"content-length", b"")
+            if declared.isdigit() and int(declared) > self.limit:
+                error = CurvefmError(
+                    f"request body of {int(declared)} bytes is larger than the limit of {self.limit} bytes "
+                    "(set CURVEFM_MAX_UPLOAD_BYTES to change it)",
+                    kind="too_large",
+                )
+                await error_response(error)(scope, receive, send)
+                return
+        await self.app(scope, receive, send)
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    settings = settings or Settings.from_env()
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        services = start_services(settings)
+        app.state.services = services
+        if settings.demo:
+            from curvefm.service.demo import start_demo
+
+            services.stop_events.append(start_demo(services))
+        try:
+            yield
+        finally:
+            services.close()
+
+    app = FastAPI(title="curvefm", version="0.1.0", description=DESCRIPTION, lifespan=lifespan)
+    install_error_handlers(app)
+    app.add_middleware(BodySizeLimit, limit=settings.max_upload_bytes)
+    for module in (routes_shapes, routes_sessions, routes_jobs):
+        app.include_router(module.router)
+    _mount_ui(app)
+    return app
+
+
+def _mount_ui(app: FastAPI) -> None:
+    """The web UI at ``/`` (:mod:`curvefm.service.ui`, after the API routes, which take precedence), or a
+    page saying it is not built yet."""
+    if (STATIC_DIR / "index.html").is_file():
+        from curvefm.service.ui import mount_ui
+
+        mount_ui(app)
+        return
+
+    @app.get("/", include_in_schema=False)
+    def placeholder() -> HTMLResponse:
+        return HTMLResponse(PLACEHOLDER_PAGE)
+
+
+def serve_main(
+    host: str = "127.0.0.1",
+    port: int = 8000,
+    data_dir: str | Path | None = None,
+    redis_url: str | None = None,
+    demo: bool = False,
+    max_upload_bytes: int | None = None,
+    log_level: str = "info",
+) -> None:
+    """Run the API with uvicorn until interrupted. ``None`` arguments fall back to the environment
+    (``CURVEFM_DATA``, ``CURVEFM_REDIS_URL``, ``CURVEFM_MAX_UPLOAD_BYTES``); without Redis, jobs run
+    in-process. One process only: sessions are cached in it and edits are serialised by in-process locks."""
+    import uvicorn
+
+    logging.basicConfig(level=log_level.upper(), format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    settings = Settings.from_env(data_dir=data_dir, redis_url=redis_url, demo=demo, max_upload_bytes=max_upload_bytes)
+    uvicorn.run(create_app(settings), host=host, port=port, log_level=log_level)

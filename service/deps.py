@@ -1,0 +1,79 @@
+"""What every route needs, created once per app at startup and found through ``request.app.state``."""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import asdict, dataclass, field
+from typing import Annotated
+
+from fastapi import Depends, Request
+
+from curvefm.errors import CurvefmError
+from curvefm.service.models import JobInfoModel
+from curvefm.service.sessions import SessionManager
+from curvefm.service.settings import Settings
+from curvefm.store import Store, params_key
+from curvefm.workers.queue import JobInfo, JobQueue, make_queue
+
+REAPER_INTERVAL_S = 5.0
+
+
+@dataclass
+class Services:
+    settings: Settings
+    store: Store
+    queue: JobQueue
+    sessions: SessionManager
+    stop_events: list[threading.Event] = field(default_factory=list)
+
+    def close(self) -> None:
+        for event in self.stop_events:
+            event.set()
+        self.queue.close()
+
+
+def start_services(settings: Settings) -> Services:
+    store = Store(settings.data_dir)
+    queue = make_queue(settings.redis_url, settings.queue_prefix, settings.job_retries, settings.embedded_workers)
+    services = Services(settings, store, queue, SessionManager(store))
+    if settings.redis_url:
+        from curvefm.workers.rq_queue import start_reaper
+
+        try:
+            queue.ping()
+        except Exception as exc:
+            raise CurvefmError(f"cannot reach Redis at {settings.redis_url}: {exc}") from None
+        services.stop_events.append(start_reaper(queue.connection, list(queue.queues.values()), REAPER_INTERVAL_S))
+    return services
+
+
+def get_services(request: Request) -> Services:
+    return request.app.state.services
+
+
+ServicesDep = Annotated[Services, Depends(get_services)]
+
+
+def job_links(info: JobInfo) -> dict[str, str]:
+    """Where to fetch what a finished job produced."""
+    if info.state != "finished" or not info.result:
+        return {}
+    if info.kind == "basis":
+        return {"shape": f"/shapes/{info.result['shape']}"}
+    return {name: f"/jobs/{info.id}/files/{name}" for name in info.result.get("files", [])}
+
+
+def job_model(info: JobInfo) -> JobInfoModel:
+    return JobInfoModel(**asdict(info), links=job_links(info))
+
+
+def submit_basis(services: Services, mesh_id: str, k: int, plugin: str, params: dict) -> JobInfo:
+    """Queue a basis job (``params`` canonical), deduplicated by (shape, plugin, k, parameters)."""
+    kwargs = {
+        "data_dir": str(services.store.root),
+        "mesh_id": mesh_id,
+        "k": k,
+        "plugin": plugin,
+        "params": params,
+    }
+    return services.queue.submit("basis", kwargs, dedupe_key=f"basis:{mesh_id}:{plugin}:{k}:{params_key(params)}")

@@ -1,0 +1,49 @@
+"""``/jobs``, ``/plugins`` and ``/health``."""
+
+from __future__ import annotations
+
+import re
+
+from fastapi import APIRouter
+from fastapi.responses import FileResponse
+
+from curvefm import registry
+from curvefm.errors import CurvefmError
+from curvefm.service.deps import ServicesDep, job_model
+from curvefm.service.models import ErrorBody, JobInfoModel
+
+router = APIRouter()
+ERRORS = {status: {"model": ErrorBody} for status in (404, 409)}
+_SAFE_NAME = re.compile(r"^[A-Za-z0-9_-][A-Za-z0-9_.-]{0,127}$")
+
+
+@router.get("/jobs/{job_id}", response_model=JobInfoModel, responses=ERRORS, tags=["jobs"])
+def get_job(job_id: str, services: ServicesDep) -> JobInfoModel:
+    """State, progress (0..1 with a message), links to results, or a readable error (with the traceback)."""
+    return job_model(services.queue.get(job_id))
+
+
+@router.delete("/jobs/{job_id}", response_model=JobInfoModel, responses=ERRORS, tags=["jobs"])
+def cancel_job(job_id: str, services: ServicesDep) -> JobInfoModel:
+    """Cancel a queued job, or stop a running one; a job that already ended answers 409."""
+    return job_model(services.queue.cancel(job_id))
+
+
+@router.get("/jobs/{job_id}/files/{name}", responses={404: {"model": ErrorBody}}, tags=["jobs"])
+def get_job_file(job_id: str, name: str, services: ServicesDep) -> FileResponse:
+    """A file a refinement job wrote (listed in its ``links``)."""
+    path = services.store.root / "results" / job_id / name
+    if not (_SAFE_NAME.match(job_id) and _SAFE_NAME.match(name) and path.is_file()):
+        raise CurvefmError(f"job {job_id} has no result file '{name}'", kind="not_found")
+    return FileResponse(path, filename=name)
+
+
+@router.get("/plugins", tags=["plugins"])
+def list_plugins() -> dict[str, list[dict]]:
+    """Installed tracers, bases and converters, each with its parameters' JSON schema."""
+    return registry.describe_all()
+
+
+@router.get("/health", tags=["service"])
+def health(services: ServicesDep) -> dict:
+    return {"status": "ok", "jobs": services.queue.mode, "data_dir": str(services.store.root)}

@@ -1,0 +1,125 @@
+"""``/sessions``: a shape pair, its curves, the maps both ways, transfers and refinement jobs."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Query, Response
+
+from curvefm.errors import CurvefmError
+from curvefm.matching import CurveSpec
+from curvefm.service.deps import ServicesDep, job_model
+from curvefm.service.errors import require_plugin
+from curvefm.service.models import (
+    CurveEdit,
+    ErrorBody,
+    JobInfoModel,
+    MapResponse,
+    RefineRequest,
+    SessionCreate,
+    SessionSummary,
+)
+from curvefm.service.sessions import TransferFunction
+from curvefm.workers.records import SessionRecord
+
+router = APIRouter(tags=["sessions"])
+ERRORS = {status: {"model": ErrorBody} for status in (400, 404, 409)}
+
+
+@router.post("/sessions", status_code=201, response_model=SessionRecord, responses=ERRORS)
+def create_session(body: SessionCreate, services: ServicesDep) -> SessionRecord:
+    """Create a session on two shapes. Both need a basis with at least ``k`` functions already (409 names
+    the missing ones and how to request them)."""
+    return services.sessions.create(body)
+
+
+@router.get("/sessions", response_model=list[SessionSummary])
+def list_sessions(services: ServicesDep) -> list[SessionSummary]:
+    return [
+        SessionSummary(n_curves=len(r.curves), **r.model_dump(include=set(SessionSummary.model_fields) - {"n_curves"}))
+        for r in services.sessions.list()
+    ]
+
+
+@router.get("/sessions/{session_id}", response_model=SessionRecord, responses=ERRORS)
+def get_session(session_id: str, services: ServicesDep) -> SessionRecord:
+    return services.sessions.record(session_id)
+
+
+@router.post("/sessions/{session_id}/curves", status_code=201, response_model=CurveEdit, responses=ERRORS)
+def add_curve(session_id: str, body: CurveSpec, services: ServicesDep) -> CurveEdit:
+    """Trace a curve pair (waypoints joined by the tracer, or ``explicit`` vertex paths; file ids), update
+    both maps, store the session, then answer with the traced paths and the new map summary."""
+    curve, summary = services.sessions.add_curve(session_id, body)
+    return CurveEdit(curve=curve, map=summary)
+
+
+@router.put("/sessions/{session_id}/curves/{curve_id}", response_model=CurveEdit, responses=ERRORS)
+def replace_curve(session_id: str, curve_id: str, body: CurveSpec, services: ServicesDep) -> CurveEdit:
+    curve, summary = services.sessions.replace_curve(session_id, curve_id, body)
+    return CurveEdit(curve=curve, map=summary)
+
+
+@router.delete("/sessions/{session_id}/curves/{curve_id}", response_model=CurveEdit, responses=ERRORS)
+def remove_curve(session_id: str, curve_id: str, services: ServicesDep) -> CurveEdit:
+    return CurveEdit(map=services.sessions.remove_curve(session_id, curve_id))
+
+
+@router.get("/sessions/{session_id}/map", response_model=MapResponse, responses=ERRORS)
+def get_map(session_id: str, services: ServicesDep) -> MapResponse:
+    C_MN, C_NM, record = services.sessions.maps(session_id)
+    return MapResponse(
+        revision=record.revision,
+        k=record.k,
+        C_source_to_target=C_MN.tolist(),
+        C_target_to_source=C_NM.tolist(),
+    )
+
+
+@router.get(
+    "/sessions/{session_id}/transfer",
+    responses={200: {"content": {"application/octet-stream": {}}}, **ERRORS},
+)
+def get_transfer(
+    session_id: str,
+    services: ServicesDep,
+    function: TransferFunction = "uv",
+    vertices: Annotated[
+        str | None, Query(description="for function=indicator: comma-separated source file ids")
+    ] = None,
+) -> Response:
+    """A function on the source carried to the target through the current map: float32 little-endian,
+    ``n x d`` row-major with one row per target vertex in internal order (as ``GET /shapes/{id}/mesh``).
+    Headers: ``X-Shape: n,d`` and ``X-Revision``. ``uv``: the source's texture coordinates (or generated
+    cylindrical ones); ``xyz``: source coordinates scaled to [0, 1] per axis; ``indicator``: 1 on
+    ``vertices``."""
+    values, revision = services.sessions.transfer(session_id, function, _parse_ids(vertices))
+    headers = {"X-Shape": f"{values.shape[0]},{values.shape[1]}", "X-Revision": str(revision)}
+    return Response(values.astype("<f4").tobytes(), media_type="application/octet-stream", headers=headers)
+
+
+@router.post("/sessions/{session_id}/refine", status_code=202, response_model=JobInfoModel, responses=ERRORS)
+def refine(session_id: str, body: RefineRequest, services: ServicesDep) -> JobInfoModel:
+    """Queue pointwise maps both ways for the session's curves as they are now. The finished job links
+    ``map_target_to_source.txt`` (line j: source vertex for target vertex j, file ids), the other direction,
+    the same maps as ``.npy``, both functional maps and a textured target OBJ."""
+    record = services.sessions.record(session_id)
+    params = require_plugin("converter", body.converter).parse_params(body.params).model_dump()
+    if not record.curves:
+        raise CurvefmError(f"session {session_id} has no curves yet; add at least one before refining", kind="conflict")
+    kwargs = {
+        "data_dir": str(services.store.root),
+        "session": record.model_dump(mode="json"),
+        "converter": body.converter,
+        "params": params,
+    }
+    return job_model(services.queue.submit("refine", kwargs))
+
+
+def _parse_ids(text: str | None) -> list[int] | None:
+    if not text:
+        return None
+    try:
+        return [int(part) for part in text.split(",") if part.strip()]
+    except ValueError:
+        raise CurvefmError(f"vertices must be comma-separated integers, got '{text}'") from None

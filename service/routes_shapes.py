@@ -1,0 +1,149 @@
+"""``/shapes``: upload, list and fetch meshes; request bases."""
+
+from __future__ import annotations
+
+import json
+import re
+import tempfile
+from pathlib import Path
+from typing import Annotated, BinaryIO, Literal
+
+import numpy as np
+from fastapi import APIRouter, File, Form, Response, UploadFile
+
+from curvefm.basis import check_k
+from curvefm.errors import CurvefmError
+from curvefm.mesh import SUPPORTED_FORMATS, Mesh, load_mesh
+from curvefm.service.deps import Services, ServicesDep, job_model, submit_basis
+from curvefm.service.errors import require_plugin
+from curvefm.service.models import BasisInfo, BasisRequest, ErrorBody, JobInfoModel, ShapeInfo
+
+router = APIRouter(tags=["shapes"])
+ERRORS = {status: {"model": ErrorBody} for status in (400, 404, 409, 413)}
+COPY_CHUNK = 1 << 20
+MESH_FORMAT = "curvefm-mesh-1"
+
+
+@router.post("/shapes", status_code=201, response_model=ShapeInfo, responses={200: {"model": ShapeInfo}, **ERRORS})
+def upload_shape(
+    response: Response,
+    file: Annotated[UploadFile, File(description=f"a mesh file: {', '.join(SUPPORTED_FORMATS)}")],
+    services: ServicesDep,
+    name: Annotated[str | None, Form(description="display name (default: the file name without suffix)")] = None,
+) -> ShapeInfo:
+    """Validate and store a mesh. Its id is the content hash, so uploading the same mesh again returns the
+    existing shape (200 instead of 201). A rejected upload stores nothing."""
+    filename = file.filename or ""
+    suffix = Path(filename).suffix.lower()
+    if suffix not in SUPPORTED_FORMATS:
+        raise CurvefmError(
+            f"unsupported mesh format '{suffix or '(no suffix)'}' of '{filename}'; supported: "
+            f"{', '.join(SUPPORTED_FORMATS)}"
+        )
+    with tempfile.TemporaryDirectory(prefix="curvefm-upload-") as folder:
+        path = Path(folder) / _safe_filename(filename)  # messages then name the user's file
+        _copy_limited(file.file, path, services.settings.max_upload_bytes)
+        mesh = load_mesh(path, name=name or Path(filename).stem)
+    if services.store.has_mesh(mesh.content_hash):
+        response.status_code = 200
+    services.store.put_mesh(mesh)
+    return shape_info(services, mesh.content_hash)
+
+
+@router.get("/shapes", response_model=list[ShapeInfo])
+def list_shapes(services: ServicesDep) -> list[ShapeInfo]:
+    return [shape_info(services, mesh_id) for mesh_id in services.store.mesh_ids()]
+
+
+@router.get("/shapes/{shape_id}", response_model=ShapeInfo, responses=ERRORS)
+def get_shape(shape_id: str, services: ServicesDep) -> ShapeInfo:
+    return shape_info(services, shape_id)
+
+
+@router.get(
+    "/shapes/{shape_id}/mesh",
+    responses={200: {"content": {"application/octet-stream": {}, "application/json": {}}}, **ERRORS},
+)
+def get_shape_mesh(shape_id: str, services: ServicesDep, format: Literal["binary", "json"] = "binary") -> Response:
+    """The mesh in internal vertex order, for drawing.
+
+    ``binary`` (default): a little-endian uint32 ``H``, then ``H`` bytes of JSON header (space-padded to a
+    multiple of 4), then the arrays back to back. The header's ``arrays`` gives each array's ``dtype``
+    (``float32`` or ``uint32``), ``shape`` and byte ``offset`` counted from the end of the header, so
+    ``new Float32Array(buffer, 4 + H + offset, n * 3)`` reads the vertices. Arrays: ``vertices`` (n x 3),
+    ``faces`` (f x 3, internal ids), ``file_ids`` (n: file id of each vertex) and, if the file had them,
+    ``uv`` (n x 2). ``json``: the same arrays as nested lists.
+    """
+    mesh = services.sessions.mesh(shape_id)
+    if format == "json":
+        arrays = {name: array.tolist() for name, array in _mesh_arrays(mesh).items()}
+        return Response(json.dumps({"format": MESH_FORMAT, "name": mesh.name, **arrays}), media_type="application/json")
+    return Response(encode_mesh(mesh), media_type="application/octet-stream")
+
+
+@router.post("/shapes/{shape_id}/bases", status_code=202, response_model=JobInfoModel, responses=ERRORS)
+def request_basis(shape_id: str, body: BasisRequest, services: ServicesDep) -> JobInfoModel:
+    """Queue the basis computation. While the same request (shape, plugin, k, parameters) is queued or
+    running, the same job is returned; if the basis already exists, the job finishes at once."""
+    mesh = services.sessions.mesh(shape_id)
+    canonical = require_plugin("basis", body.plugin).parse_params(body.params).model_dump()
+    check_k(body.k, mesh.n_vertices, mesh.name or shape_id)
+    return job_model(submit_basis(services, shape_id, body.k, body.plugin, canonical))
+
+
+def shape_info(services: Services, shape_id: str) -> ShapeInfo:
+    mesh = services.sessions.mesh(shape_id)
+    return ShapeInfo(
+        id=shape_id,
+        name=mesh.name,
+        n_vertices=mesh.n_vertices,
+        n_faces=len(mesh.faces),
+        n_file_vertices=mesh.n_file_vertices,
+        has_uv=mesh.uv is not None,
+        report=mesh.report.as_dict(),
+        bases=[BasisInfo(**b) for b in services.store.stored_bases(shape_id)],
+    )
+
+
+def encode_mesh(mesh: Mesh) -> bytes:
+    arrays = _mesh_arrays(mesh)
+    layout, offset = {}, 0
+    for name, array in arrays.items():
+        layout[name] = {"dtype": array.dtype.name, "shape": list(array.shape), "offset": offset}
+        offset += array.nbytes
+    header = json.dumps({"format": MESH_FORMAT, "name": mesh.name, "arrays": layout}).encode()
+    header += b" " * (-len(header) % 4)
+    parts = [np.uint32(len(header)).astype("<u4").tobytes(), header]
+    return b"".join(parts + [array.tobytes() for array in arrays.values()])
+
+
+def _mesh_arrays(mesh: Mesh) -> dict[str, np.ndarray]:
+    arrays = {
+        "vertices": mesh.vertices.astype("<f4"),
+        "faces": mesh.faces.astype("<u4"),
+        "file_ids": mesh.file_ids.astype("<u4"),
+    }
+    if mesh.uv is not None:
+        arrays["uv"] = mesh.uv.astype("<f4")
+    return arrays
+
+
+def _copy_limited(source: BinaryIO, destination: Path, limit: int) -> None:
+    copied = 0
+    with open(destination, "wb") as out:
+        while chunk := source.read(COPY_CHUNK):
+            copied += len(chunk)
+            if copied > limit:
+                raise too_large(limit)
+            out.write(chunk)
+
+
+def too_large(limit: int) -> CurvefmError:
+    return CurvefmError(
+        f"upload is larger than the limit of {limit} bytes (set CURVEFM_MAX_UPLOAD_BYTES to change it)",
+        kind="too_large",
+    )
+
+
+def _safe_filename(filename: str) -> str:
+    return re.sub(r"[^A-Za-z0-9._-]", "_", Path(filename).name).lstrip(".") or "upload"

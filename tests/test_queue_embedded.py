@@ -1,0 +1,87 @@
+"""The in-process executor (no Redis): same states as RQ, progress, deduplication, cancelling, failures."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from curvefm.errors import CurvefmError
+from curvefm.service.demo import demo_shapes
+from curvefm.store import Store
+from curvefm.workers.queue import EmbeddedQueue, JobInfo
+
+
+@pytest.fixture
+def store(tmp_path) -> Store:
+    return Store(tmp_path / "data")
+
+
+@pytest.fixture
+def mesh_id(store) -> str:
+    return store.put_mesh(demo_shapes()[0])
+
+
+@pytest.fixture
+def queue():
+    queue = EmbeddedQueue(max_workers=1)
+    yield queue
+    queue.close()
+
+
+def basis_job(store: Store, mesh_id: str, k: int) -> dict:
+    return {
+        "data_dir": str(store.root),
+        "mesh_id": mesh_id,
+        "k": k,
+        "plugin": "laplace-beltrami",
+        "params": {},
+    }
+
+
+def wait(queue: EmbeddedQueue, job_id: str, states=("finished", "failed", "canceled"), timeout=120) -> JobInfo:
+    deadline = time.monotonic() + timeout
+    while (info := queue.get(job_id)).state not in states:
+        assert time.monotonic() < deadline, info
+        time.sleep(0.02)
+    return info
+
+
+def test_finished_job_reports_progress_and_result(store, mesh_id, queue):
+    info = wait(queue, queue.submit("basis", basis_job(store, mesh_id, 20)).id)
+    assert (info.state, info.progress, info.result["k"]) == ("finished", 1.0, 20)
+    assert info.started_at <= info.ended_at
+    assert [b["k"] for b in store.stored_bases(mesh_id)] == [20]
+
+
+def test_duplicate_requests_share_one_job(store, mesh_id, queue):
+    first = queue.submit("basis", basis_job(store, mesh_id, 20), dedupe_key="basis-20")
+    assert queue.submit("basis", basis_job(store, mesh_id, 20), dedupe_key="basis-20").id == first.id
+    wait(queue, first.id)
+    again = queue.submit("basis", basis_job(store, mesh_id, 20), dedupe_key="basis-20")
+    assert again.id != first.id and wait(queue, again.id).state == "finished"  # the basis exists: at once
+
+
+def test_cancel_queued_and_running_jobs(store, mesh_id, queue):
+    running = queue.submit("basis", basis_job(store, mesh_id, 80))
+    waiting = queue.submit("basis", basis_job(store, mesh_id, 40))
+    wait(queue, running.id, states=("started",))
+
+    assert queue.cancel(waiting.id).state == "canceled"
+    assert "cancel requested" in queue.cancel(running.id).message
+    assert wait(queue, running.id).state == "canceled"
+    assert store.stored_bases(mesh_id) == []  # stopped before the basis was stored
+    assert queue.cancel(running.id).state == "canceled"
+
+
+def test_failures_keep_a_readable_error_and_the_traceback(store, queue):
+    info = wait(queue, queue.submit("basis", basis_job(store, "feedbeef", 20)).id)
+    assert info.state == "failed"
+    assert info.error == "no shape with id 'feedbeef'"
+    assert "Traceback" in info.traceback and "CurvefmError" in info.traceback
+    with pytest.raises(CurvefmError) as error:
+        queue.cancel(info.id)
+    assert error.value.kind == "conflict"
+    with pytest.raises(CurvefmError) as error:
+        queue.get("nope")
+    assert error.value.kind == "not_found"

@@ -1,0 +1,91 @@
+"""The API's everyday paths over HTTP: documentation, plugins, shapes, curve edits, maps and transfers."""
+
+from __future__ import annotations
+
+import json
+import struct
+
+import numpy as np
+import pytest
+
+from curvefm.service.demo import demo_shapes
+
+K = 30
+
+
+@pytest.fixture(scope="module")
+def server(module_processes, tmp_path_factory):
+    folder = tmp_path_factory.mktemp("api")
+    api = module_processes.api(folder / "data")
+    api.shapes, api.session = api.demo_pair(folder, K)
+    return api
+
+
+def test_documentation_and_plugins(server):
+    assert server.client.get("/docs").status_code == 200
+    paths = server.client.get("/openapi.json").json()["paths"]
+    assert {"/shapes", "/sessions/{session_id}/curves", "/jobs/{job_id}", "/plugins"} <= set(paths)
+    plugins = server.client.get("/plugins").json()
+    assert {p["name"] for p in plugins["tracer"]} >= {"geodesic", "anisotropic"}
+    assert "properties" in plugins["tracer"][0]["parameters"]
+    assert server.client.get("/").status_code == 200  # the web UI, or a page saying it is not built yet
+
+
+def test_shapes_are_listed_and_their_mesh_decodes(server):
+    listed = {shape["id"]: shape for shape in server.client.get("/shapes").json()}
+    assert set(server.shapes) <= set(listed)
+    source = listed[server.shapes[0]]
+    assert (source["n_vertices"], source["bases"][0]["k"]) == (4098, K)
+
+    payload = server.client.get(f"/shapes/{server.shapes[0]}/mesh").raise_for_status().content
+    (header_length,) = struct.unpack("<I", payload[:4])
+    header = json.loads(payload[4 : 4 + header_length])
+    assert header_length % 4 == 0
+
+    def array(name: str) -> np.ndarray:
+        layout = header["arrays"][name]
+        start = 4 + header_length + layout["offset"]
+        return np.frombuffer(payload, layout["dtype"], int(np.prod(layout["shape"])), start).reshape(layout["shape"])
+
+    mesh = demo_shapes()[0]
+    assert np.allclose(array("vertices"), mesh.vertices, atol=1e-5)
+    assert np.array_equal(array("faces"), mesh.faces)
+    assert np.array_equal(array("file_ids"), np.arange(4098))
+    as_json = server.client.get(f"/shapes/{server.shapes[0]}/mesh", params={"format": "json"}).json()
+    assert np.array_equal(as_json["faces"], mesh.faces)
+
+
+def test_curve_edits_update_the_map_and_the_stored_session(server):
+    url = f"/sessions/{server.session}"
+    first = server.client.post(f"{url}/curves", json={"source": [19, 432], "target": [19, 432]}).json()
+    second = server.client.post(f"{url}/curves", json={"source": [1326, 1332], "target": [1326, 1332]}).json()
+    assert second["map"]["n_curves"] == first["map"]["n_curves"] + 1
+    C_before = np.array(server.client.get(f"{url}/map").json()["C_source_to_target"])
+    assert C_before.shape == (K, K) and np.abs(C_before).sum() > 0
+
+    path = first["curve"]["path_source"]
+    replaced = server.client.put(
+        f"{url}/curves/{first['curve']['id']}",
+        json={"source": path, "target": path, "explicit": True, "weight": 3.0},
+    ).json()
+    assert replaced["curve"]["tracer"] == "explicit" and replaced["curve"]["path_target"] == path
+    C_after = np.array(server.client.get(f"{url}/map").json()["C_source_to_target"])
+    assert not np.allclose(C_before, C_after)
+
+    removed = server.client.delete(f"{url}/curves/{second['curve']['id']}").json()
+    assert removed["curve"] is None
+    stored = server.client.get(url).json()
+    assert [c["id"] for c in stored["curves"]] == [first["curve"]["id"]]
+    assert stored["revision"] == removed["map"]["revision"]
+    summary = next(s for s in server.client.get("/sessions").json() if s["id"] == server.session)
+    assert (summary["n_curves"], summary["revision"]) == (1, stored["revision"])
+
+
+@pytest.mark.parametrize(("function", "columns"), [("uv", 2), ("xyz", 3), ("indicator", 1)])
+def test_transfers_are_float32_rows_per_target_vertex(server, function, columns):
+    server.client.post(f"/sessions/{server.session}/curves", json={"source": [19, 432], "target": [19, 432]})
+    params = {"function": function, "vertices": "19,20,21"}
+    response = server.client.get(f"/sessions/{server.session}/transfer", params=params).raise_for_status()
+    assert response.headers["X-Shape"] == f"4098,{columns}"
+    values = np.frombuffer(response.content, "<f4").reshape(4098, columns)
+    assert np.isfinite(values).all() and values.std() > 0

@@ -1,0 +1,90 @@
+"""Job functions: plain importable functions with plain arguments, run by RQ workers or the embedded executor.
+
+Each returns a small JSON-able dict. Files go under the data directory: bases into the content-addressed
+store, refinement results into ``<data>/results/<job id>/`` (published all at once by a directory rename).
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from curvefm import registry
+from curvefm.errors import CurvefmError
+from curvefm.matching import MatchResult, write_outputs
+from curvefm.progress import scaled
+from curvefm.store import Store, params_key
+from curvefm.workers.context import running_job
+from curvefm.workers.records import SessionRecord, build_solver, internal_paths, load_pair
+
+
+def compute_basis(
+    data_dir: str, mesh_id: str, k: int, plugin: str = "laplace-beltrami", params: dict | None = None
+) -> dict:
+    """Compute (or find) the basis of a stored mesh and store it."""
+    with running_job() as job:
+        store = Store(data_dir)
+        mesh = store.get_mesh(mesh_id)
+        canonical = registry.get("basis", plugin).parse_params(params).model_dump()
+        store.ensure_basis(mesh, k, plugin, canonical, job.progress)
+        return {
+            "shape": mesh_id,
+            "k": k,
+            "plugin": plugin,
+            "params": canonical,
+            "params_key": params_key(canonical),
+        }
+
+
+def refine(data_dir: str, session: dict, converter: str = "nearest-neighbor", params: dict | None = None) -> dict:
+    """Pointwise maps both ways for a snapshot of a session (a :class:`SessionRecord` as a dict).
+
+    Writes ``map_target_to_source.txt`` / ``map_source_to_target.txt`` (file ids, as ``curvefm match``), the
+    same maps as ``p2p_target_to_source.npy`` / ``p2p_source_to_target.npy``, both functional maps and
+    ``target_textured.obj``.
+    """
+    with running_job() as job:
+        record = SessionRecord.model_validate(session)
+        plugin = registry.get("converter", converter)
+        parsed = plugin.parse_params(params)
+        if not record.curves:
+            raise CurvefmError(f"session {record.id} has no curves; add at least one before refining")
+        job.progress(0.0, "loading shapes and bases")
+        pair = load_pair(Store(data_dir), record)
+        solver, _ = build_solver(record, pair)
+        paths = [internal_paths(pair, curve) for curve in record.curves]
+        result = MatchResult(pair.mesh_M, pair.mesh_N, pair.basis_M, pair.basis_N, solver, paths=paths)
+        job.progress(0.1, f"converting with '{converter}'")
+        result.maps = plugin.run(result.problem(), parsed, scaled(job.progress, 0.1, 0.9))
+        job.progress(0.9, "writing results")
+        files = _publish(Path(data_dir) / "results" / job.id, lambda out: _write_result_files(result, out))
+        job.progress(1.0, "done")
+        return {"session": record.id, "revision": record.revision, "converter": converter, "files": files}
+
+
+def _write_result_files(result: MatchResult, out: Path) -> None:
+    write_outputs(result, out)
+    for name, p2p, image, domain in (
+        ("p2p_target_to_source.npy", result.maps.p2p_NM, result.mesh_M, result.mesh_N),
+        ("p2p_source_to_target.npy", result.maps.p2p_MN, result.mesh_N, result.mesh_M),
+    ):
+        np.save(out / name, domain.per_file_vertex(image.file_ids[p2p], -1))
+
+
+def _publish(final: Path, write) -> list[str]:
+    """Write into a fresh sibling folder, then rename it into place: readers see all files or none."""
+    final.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(dir=final.parent, prefix=f".{final.name}."))
+    staging.chmod(0o755)  # mkdtemp makes it private; the API may run as another user on a shared volume
+    try:
+        write(staging)
+        if final.exists():  # left by an earlier attempt of this job (a retry after a worker died)
+            shutil.rmtree(final)
+        staging.rename(final)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    return sorted(p.name for p in final.iterdir())

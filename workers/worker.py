@@ -1,0 +1,40 @@
+"""``curvefm worker``: an RQ worker on the project's queues, plus the abandoned-job reaper."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+
+from curvefm.errors import CurvefmError
+
+
+def worker_main(
+    redis_url: str | None = None,
+    queues: Sequence[str] | None = None,
+    name: str | None = None,
+    burst: bool = False,
+    log_level: str = "INFO",
+) -> None:
+    """Run an RQ worker until it is stopped (or, with ``burst``, until the queues are empty).
+
+    ``redis_url`` defaults to ``CURVEFM_REDIS_URL``; ``queues`` to both project queues with the
+    ``CURVEFM_QUEUE_PREFIX`` prefix (basis first). Job functions are imported before the first job so each
+    forked work horse starts without import delay.
+    """
+    from redis import Redis
+    from rq import Queue, Worker
+
+    from curvefm.workers import jobs  # noqa: F401  (imported here so work horses inherit it)
+    from curvefm.workers.rq_queue import queue_names, start_reaper
+
+    url = redis_url or os.environ.get("CURVEFM_REDIS_URL")
+    if not url:
+        raise CurvefmError("a worker needs Redis: pass --redis-url or set CURVEFM_REDIS_URL")
+    connection = Redis.from_url(url)
+    names = list(queues) if queues else list(queue_names(os.environ.get("CURVEFM_QUEUE_PREFIX", "")).values())
+    rq_queues = [Queue(queue_name, connection=connection) for queue_name in names]
+    stop_reaper = start_reaper(connection, rq_queues)
+    try:
+        Worker(rq_queues, connection=connection, name=name).work(burst=burst, logging_level=log_level)
+    finally:
+        stop_reaper.set()
