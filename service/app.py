@@ -8,18 +8,14 @@ from contextlib import asynccontextmanager
 from pathlib import Path
 
 from fastapi import FastAPI
-from fastapi.responses import HTMLResponse
 
 from curvefm.errors import CurvefmError
 from curvefm.service import routes_jobs, routes_sessions, routes_shapes
 from curvefm.service.deps import start_services
 from curvefm.service.errors import error_response, install_error_handlers
 from curvefm.service.settings import Settings
+from curvefm.service.ui import mount_ui
 
-STATIC_DIR = Path(__file__).parent / "static"
-PLACEHOLDER_PAGE = """<!doctype html><html><head><meta charset="utf-8"><title>curvefm</title></head><body>
-<h1>curvefm</h1><p>The web UI is not built yet. The HTTP API is documented at <a href="/docs">/docs</a>.</p>
-</body></html>"""
 DESCRIPTION = """Interactive curve-constrained functional maps between 3D shapes.
 
 Upload shapes, request their bases (a job), create a session on a pair, add corresponding curves (answered at
@@ -68,22 +64,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_middleware(BodySizeLimit, limit=settings.max_upload_bytes)
     for module in (routes_shapes, routes_sessions, routes_jobs):
         app.include_router(module.router)
-    _mount_ui(app)
+    mount_ui(app)  # last: its catch-all mount at / must not shadow the API routes
     return app
-
-
-def _mount_ui(app: FastAPI) -> None:
-    """The web UI at ``/`` (:mod:`curvefm.service.ui`, after the API routes, which take precedence), or a
-    page saying it is not built yet."""
-    if (STATIC_DIR / "index.html").is_file():
-        from curvefm.service.ui import mount_ui
-
-        mount_ui(app)
-        return
-
-    @app.get("/", include_in_schema=False)
-    def placeholder() -> HTMLResponse:
-        return HTMLResponse(PLACEHOLDER_PAGE)
 
 
 def serve_main(

@@ -1,0 +1,194 @@
+"""Click-to-new-texture in the browser, and responsiveness of the page on a 50k-vertex pair.
+
+Starts ``python -m curvefm.service`` (embedded jobs) on a free port, uploads a pair from ../shared/data, computes
+its bases (k = 120) through the job queue (kept in ``--data`` between runs), creates a session and opens the
+web UI in headless Chromium (WebGL through SwiftShader, i.e. drawn on the CPU). Then:
+
+* ``latency`` (TOSCA cat0 -> cat1, 27894 vertices): ``--curves`` curves entered by real mouse clicks on
+  rendered vertices (start and end on the source, then on the target, each click once the previous one's
+  marker is on screen, as a person would). For each, the page measures the time from the click that completes
+  the curve to the moment the frame with the new texture has been drawn (a WebGL fence after the draw has
+  signalled): the POST of the curve (trace both paths, update both maps, store the session), the GET of the
+  carried texture coordinates, the attribute update and the draw. Reports p50 / p95 and the parts.
+* ``responsiveness`` (TOSCA david0 -> david1, 52565 vertices): the longest main-thread task
+  (``PerformanceObserver('longtask')``) and the longest gap between animation frames while the session loads
+  and while ``--large-curves`` curves are added; the page counts as frozen from a gap of 1 s.
+
+Endpoints are pairs of vertices visible on both shapes with the same id (TOSCA poses of one class correspond by
+id), sampled on a grid over the source canvas, at least 120 pixels apart. Prints JSON.
+
+Usage: ``python benchmarks/bench_ui_latency.py [--data DIR] [--curves N] [--large-curves M] [--no-large]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import httpx
+import numpy as np
+from common import REPO, machine, shared_data
+
+sys.path.insert(0, str(REPO / "tests"))
+from ui_helpers import (  # noqa: E402  (shared with the browser tests)
+    CHROMIUM,
+    VIEWPORT,
+    click_curve,
+    endpoint_pairs,
+    launch,
+    open_session,
+    pickable_vertices,
+)
+
+K = 120
+LATENCY_PAIR = ("cat0.off", "cat1.off")
+LARGE_PAIR = ("david0.off", "david1.off")
+FROZEN_GAP_MS = 1000
+
+# Installed before the page's own scripts: records long tasks and the gaps between animation frames.
+MONITOR_JS = """
+window.curvefmMonitor = { longTasks: [], maxGap: 0, last: null, reset() { this.longTasks = []; this.maxGap = 0; } };
+new PerformanceObserver((list) => {
+  for (const entry of list.getEntries()) window.curvefmMonitor.longTasks.push(entry.duration);
+}).observe({ type: "longtask", buffered: true });
+const tick = (now) => {
+  const m = window.curvefmMonitor;
+  if (m.last !== null) m.maxGap = Math.max(m.maxGap, now - m.last);
+  m.last = now;
+  requestAnimationFrame(tick);
+};
+requestAnimationFrame(tick);
+"""
+
+
+def start_server(data: Path) -> tuple[subprocess.Popen, str]:
+    port = free_port()
+    command = [sys.executable, "-m", "curvefm.service", "--port", str(port), "--data", str(data)]
+    server = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    url = f"http://127.0.0.1:{port}"
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        try:
+            if httpx.get(f"{url}/health", timeout=1).status_code == 200:
+                return server, url
+        except httpx.TransportError:
+            time.sleep(0.1)
+    server.kill()
+    raise SystemExit("the server did not start")
+
+
+def free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def prepare_session(client: httpx.Client, names: tuple[str, str]) -> tuple[str, int]:
+    """Upload the pair, compute its bases, create a session: (session id, source vertex count)."""
+    ids, n_vertices = [], 0
+    for name in names:
+        with open(shared_data() / "tosca" / name, "rb") as f:
+            shape = client.post("/shapes", files={"file": (name, f)}).raise_for_status().json()
+        ids.append(shape["id"])
+        n_vertices = n_vertices or shape["n_vertices"]
+    for shape_id in ids:
+        job = client.post(f"/shapes/{shape_id}/bases", json={"k": K}).raise_for_status().json()
+        while (info := client.get(f"/jobs/{job['id']}").json())["state"] not in ("finished", "failed", "canceled"):
+            time.sleep(0.5)
+        if info["state"] != "finished":
+            raise SystemExit(f"basis job {info['state']}: {info['error']}")
+    session = client.post("/sessions", json={"source": ids[0], "target": ids[1], "k": K, "name": "bench-ui"})
+    return session.raise_for_status().json()["id"], n_vertices
+
+
+def percentile(values: list[float], q: float) -> float:
+    return round(float(np.percentile(values, q)), 1)
+
+
+def measure_latency(browser, url: str, session_id: str, n_vertices: int, curves: int) -> dict:
+    page = browser.new_page(viewport=VIEWPORT)
+    open_session(page, url, session_id, timeout_ms=120_000)
+    pairs = endpoint_pairs(pickable_vertices(page), curves)
+    samples = [click_curve(page, list(pair)) for pair in pairs]
+    page.close()
+    total = [s["totalMs"] for s in samples]
+    return {
+        "pair": "/".join(LATENCY_PAIR),
+        "vertices": n_vertices,
+        "k": K,
+        "curves": curves,
+        "click_to_texture_ms": {"p50": percentile(total, 50), "p95": percentile(total, 95), "max": max(total)},
+        "parts_median_ms": {
+            part: percentile([s[key] for s in samples], 50)
+            for part, key in (("edit_request", "editMs"), ("transfer", "transferMs"), ("draw", "drawMs"))
+        },
+        "server_solve_median_ms": percentile([s["solveMs"] for s in samples], 50),
+        "samples_ms": total,
+    }
+
+
+def measure_responsiveness(browser, url: str, session_id: str, n_vertices: int, curves: int) -> dict:
+    page = browser.new_page(viewport=VIEWPORT)
+    page.add_init_script(MONITOR_JS)
+    started = time.perf_counter()
+    open_session(page, url, session_id, timeout_ms=180_000)
+    load_s = time.perf_counter() - started
+    loading = page.evaluate("({ longest: Math.max(0, ...curvefmMonitor.longTasks), maxGap: curvefmMonitor.maxGap })")
+    pairs = endpoint_pairs(pickable_vertices(page), curves)  # the test hook's raycasts are not the page's work
+    page.evaluate("curvefmMonitor.reset()")
+    samples = [click_curve(page, list(pair)) for pair in pairs]
+    editing = page.evaluate("({ longest: Math.max(0, ...curvefmMonitor.longTasks), maxGap: curvefmMonitor.maxGap })")
+    page.close()
+    return {
+        "pair": "/".join(LARGE_PAIR),
+        "vertices": n_vertices,
+        "load_to_first_texture_s": round(load_s, 2),
+        "loading": {"longest_task_ms": round(loading["longest"]), "max_frame_gap_ms": round(loading["maxGap"])},
+        "editing": {
+            "curves": curves,
+            "longest_task_ms": round(editing["longest"]),
+            "max_frame_gap_ms": round(editing["maxGap"]),
+            "click_to_texture_ms": [s["totalMs"] for s in samples],
+        },
+        "frozen": max(loading["maxGap"], editing["maxGap"]) >= FROZEN_GAP_MS,
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--data", default=os.environ.get("CURVEFM_BENCH_DATA", "/tmp/curvefm-bench"))
+    parser.add_argument("--curves", type=int, default=20)
+    parser.add_argument("--large-curves", type=int, default=3)
+    parser.add_argument("--no-large", action="store_true", help="skip the 50k-vertex responsiveness check")
+    args = parser.parse_args()
+    if not CHROMIUM.is_file():
+        sys.exit(f"benchmark needs Chromium at {CHROMIUM} (set CURVEFM_CHROMIUM)")
+    from playwright.sync_api import sync_playwright
+
+    server, url = start_server(Path(args.data))
+    try:
+        client = httpx.Client(base_url=url, timeout=600)
+        result = {"machine": {**machine(), "load_average_1min": os.getloadavg()[0]}, "renderer": "SwiftShader"}
+        with sync_playwright() as playwright:
+            browser = launch(playwright)
+            session_id, n = prepare_session(client, LATENCY_PAIR)
+            result["latency"] = measure_latency(browser, url, session_id, n, args.curves)
+            if not args.no_large:
+                session_id, n = prepare_session(client, LARGE_PAIR)
+                result["responsiveness"] = measure_responsiveness(browser, url, session_id, n, args.large_curves)
+            browser.close()
+        print(json.dumps(result, indent=1))
+    finally:
+        server.terminate()
+        server.wait(timeout=30)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,125 @@
+// The curvefm HTTP API: JSON in and out, binary payloads as ArrayBuffer, every failure as an ApiError.
+// Vertex ids in JSON are file ids; binary payloads (mesh, transfer, texcoords) follow internal vertex order.
+
+export class ApiError extends Error {
+  /** kind: the service's error kind (invalid, not_found, conflict, too_large) or "network". */
+  constructor(message, { status = 0, kind = "network" } = {}) {
+    super(message);
+    this.status = status;
+    this.kind = kind;
+  }
+}
+
+const connectionListeners = new Set();
+let connected = true;
+
+/** listener(connected: boolean) runs when requests start failing to reach the service, or reach it again. */
+export function onConnectionChange(listener) {
+  connectionListeners.add(listener);
+}
+
+function setConnected(value) {
+  if (value === connected) return;
+  connected = value;
+  for (const listener of connectionListeners) listener(value);
+}
+
+async function request(method, path, { json, body, as = "json" } = {}) {
+  const init = { method, headers: {} };
+  if (json !== undefined) {
+    init.body = JSON.stringify(json);
+    init.headers["Content-Type"] = "application/json";
+  } else if (body !== undefined) {
+    init.body = body;
+  }
+  let response;
+  try {
+    response = await fetch(path, init);
+  } catch (error) {
+    setConnected(false);
+    throw new ApiError(`cannot reach the service (${method} ${path}): ${error.message}`);
+  }
+  setConnected(true);
+  if (!response.ok) throw await errorFrom(response);
+  if (as === "json") return response.json();
+  if (as === "text") return response.text();
+  return { buffer: await response.arrayBuffer(), headers: response.headers };
+}
+
+async function errorFrom(response) {
+  const text = await response.text();
+  let kind = "invalid";
+  let detail = text || response.statusText;
+  try {
+    const body = JSON.parse(text);
+    kind = body.error ?? kind;
+    detail = typeof body.detail === "string" ? body.detail : JSON.stringify(body.detail);
+  } catch {
+    // not JSON (a proxy's page, say): the text itself is the message
+  }
+  return new ApiError(detail, { status: response.status, kind });
+}
+
+const enc = encodeURIComponent;
+
+export const api = {
+  health: () => request("GET", "/health"),
+  plugins: () => request("GET", "/plugins"),
+
+  shapes: () => request("GET", "/shapes"),
+  shape: (id) => request("GET", `/shapes/${enc(id)}`),
+  mesh: (id) => request("GET", `/shapes/${enc(id)}/mesh`, { as: "binary" }),
+  texcoords: (id) => request("GET", `/ui/texcoords/${enc(id)}`, { as: "binary" }),
+  uploadShape(file) {
+    const form = new FormData();
+    form.append("file", file, file.name);
+    return request("POST", "/shapes", { body: form });
+  },
+  requestBasis: (id, k) => request("POST", `/shapes/${enc(id)}/bases`, { json: { k } }),
+
+  sessions: () => request("GET", "/sessions"),
+  session: (id) => request("GET", `/sessions/${enc(id)}`),
+  createSession: (body) => request("POST", "/sessions", { json: body }),
+  addCurve: (id, spec) => request("POST", `/sessions/${enc(id)}/curves`, { json: spec }),
+  replaceCurve: (id, curveId, spec) =>
+    request("PUT", `/sessions/${enc(id)}/curves/${enc(curveId)}`, { json: spec }),
+  deleteCurve: (id, curveId) => request("DELETE", `/sessions/${enc(id)}/curves/${enc(curveId)}`),
+  map: (id) => request("GET", `/sessions/${enc(id)}/map`),
+  /** function: uv | xyz | indicator (with vertices: source file ids). Resolves to { values, columns, revision }. */
+  async transfer(id, fn, vertices = null) {
+    const query = new URLSearchParams({ function: fn });
+    if (vertices) query.set("vertices", vertices.join(","));
+    const { buffer, headers } = await request("GET", `/sessions/${enc(id)}/transfer?${query}`, { as: "binary" });
+    const columns = Number(headers.get("X-Shape").split(",")[1]);
+    return { values: new Float32Array(buffer), columns, revision: Number(headers.get("X-Revision")) };
+  },
+  refine: (id, converter, params) => request("POST", `/sessions/${enc(id)}/refine`, { json: { converter, params } }),
+
+  job: (id) => request("GET", `/jobs/${enc(id)}`),
+  cancelJob: (id) => request("DELETE", `/jobs/${enc(id)}`),
+  text: (path) => request("GET", path, { as: "text" }),
+};
+
+/** Poll a job until it ends; onProgress(job) sees every state. Resolves with the finished job, rejects
+ * with an ApiError carrying the job's readable error when it failed or was canceled. While the service
+ * cannot be reached it keeps trying. */
+export async function waitForJob(jobId, onProgress, intervalMs = 250) {
+  for (;;) {
+    let job;
+    try {
+      job = await api.job(jobId);
+    } catch (error) {
+      if (error.kind !== "network") throw error;
+      await sleep(2000); // the job goes on in the service; keep asking once it answers again
+      continue;
+    }
+    onProgress(job);
+    if (job.state === "finished") return job;
+    if (job.state === "failed" || job.state === "canceled") {
+      throw new ApiError(job.error || `job ${job.state}: ${job.message}`, { kind: job.state });
+    }
+    await sleep(intervalMs);
+  }
+}
+
+export const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));

@@ -1,0 +1,58 @@
+"""The web UI: static files from ``static/`` at ``/``, three.js from npm at ``/vendor/three/``.
+
+three.js is not committed: ``npm install`` (run by ``scripts/setup.sh``) puts the version pinned in
+``package.json`` into ``node_modules/three`` at the repository root; ``CURVEFM_THREE_DIR`` points elsewhere
+(e.g. in an image that copied the package). The page imports it through an import map, with no build step.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from fastapi import FastAPI, Response
+from fastapi.responses import JSONResponse
+from fastapi.staticfiles import StaticFiles
+
+from curvefm.service.deps import ServicesDep
+from curvefm.service.models import ErrorBody
+from curvefm.texture import texture_coordinates
+
+STATIC_DIR = Path(__file__).parent / "static"
+VENDOR_URL = "/vendor/three"
+REPO_THREE_DIR = Path(__file__).resolve().parents[1] / "node_modules" / "three"
+
+
+def three_dir() -> Path:
+    """Where the three.js package is: ``CURVEFM_THREE_DIR``, else ``node_modules/three`` of the checkout."""
+    return Path(os.environ.get("CURVEFM_THREE_DIR") or REPO_THREE_DIR)
+
+
+def mount_ui(app: FastAPI) -> None:
+    """Add the UI to ``app``: call it after the API routers (the catch-all ``/`` mount comes last)."""
+
+    @app.get(
+        "/ui/texcoords/{shape_id}",
+        responses={200: {"content": {"application/octet-stream": {}}}, 404: {"model": ErrorBody}},
+        tags=["ui"],
+    )
+    def get_texcoords(shape_id: str, services: ServicesDep) -> Response:
+        """The texture coordinates the ``uv`` transfer carries: the shape's own, else generated cylindrical
+        ones. float32 little-endian, ``n x 2`` row-major in internal vertex order (as the mesh payload)."""
+        uv = texture_coordinates(services.sessions.mesh(shape_id))
+        return Response(uv.astype("<f4").tobytes(), media_type="application/octet-stream")
+
+    three = three_dir()
+    if (three / "build" / "three.module.js").is_file():
+        app.mount(VENDOR_URL, StaticFiles(directory=three), name="vendor-three")
+    else:
+        message = (
+            f"three.js is not installed at {three}: run `npm install` in the repository root "
+            "(scripts/setup.sh does) or set CURVEFM_THREE_DIR to an installed 'three' package"
+        )
+
+        @app.get(VENDOR_URL + "/{path:path}", include_in_schema=False)
+        def three_missing(path: str) -> JSONResponse:
+            return JSONResponse({"error": "not_found", "detail": message}, status_code=404)
+
+    app.mount("/", StaticFiles(directory=STATIC_DIR, html=True), name="ui")

@@ -1,0 +1,212 @@
+"""The web UI in a real browser: Debian's Chromium (headless, WebGL through SwiftShader) driven by Playwright
+against a real ``python -m curvefm.service --demo`` process. Curves are entered by real mouse clicks on
+rendered vertices. Screenshots are written to ``test-artifacts/ui/``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import httpx
+import numpy as np
+import pytest
+from conftest import REPO
+from fastapi import FastAPI
+from ui_helpers import (
+    CHROMIUM,
+    VIEWPORT,
+    canvas_pixels,
+    changed_fraction,
+    click_curve,
+    endpoint_pairs,
+    launch,
+    next_frames,
+    open_session,
+    pickable_vertices,
+)
+
+from curvefm.service.demo import DEMO_SESSION, demo_curves, demo_shapes
+from curvefm.service.ui import mount_ui
+
+ARTIFACTS = REPO / "test-artifacts" / "ui"
+needs_chromium = pytest.mark.skipif(
+    not CHROMIUM.is_file(),
+    reason=f"browser tests need Chromium at {CHROMIUM} (scripts/setup.sh installs Debian's 'chromium'; "
+    "CURVEFM_CHROMIUM points elsewhere)",
+)
+MIN_CHANGED = 0.003  # share of the target canvas's pixels a new curve must visibly recolour
+
+
+@pytest.fixture(scope="module")
+def demo(module_processes, tmp_path_factory):
+    """A demo server whose session is ready (its bases computed and its curves added)."""
+    api = module_processes.api(tmp_path_factory.mktemp("ui") / "data", args=("--demo",))
+    expected = len(demo_curves(demo_shapes()[0]))
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        response = api.client.get(f"/sessions/{DEMO_SESSION}")
+        if response.status_code == 200 and len(response.json()["curves"]) == expected:
+            return api
+        time.sleep(0.25)
+    raise AssertionError(f"the demo session was not ready:\n{api.log.read_text()[-3000:]}")
+
+
+@pytest.fixture(scope="module")
+def browser():
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as playwright:
+        browser = launch(playwright)
+        yield browser
+        browser.close()
+
+
+@pytest.fixture
+def page(browser, demo):
+    context = browser.new_context(viewport=VIEWPORT, accept_downloads=True)
+    page = context.new_page()
+    errors = []
+    page.on("pageerror", lambda error: errors.append(str(error)))
+    open_session(page, demo.url, DEMO_SESSION)
+    yield page
+    context.close()
+    assert not errors, f"uncaught errors in the page: {errors}"
+
+
+def screenshot(page, name: str) -> None:
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    page.screenshot(path=str(ARTIFACTS / f"{name}.png"))
+
+
+def session(demo) -> dict:
+    return demo.client.get(f"/sessions/{DEMO_SESSION}").raise_for_status().json()
+
+
+def wait_until(condition, what: str, timeout: float = 30) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out waiting until {what}")
+        time.sleep(0.1)
+
+
+@needs_chromium
+def test_click_curves_delete_refine_and_download(page, demo):
+    screenshot(page, "01-demo-loaded")
+    record = session(demo)
+    target = demo.client.get(f"/shapes/{record['target']}").json()
+    source = demo.client.get(f"/shapes/{record['source']}").json()
+    known = {curve["id"] for curve in record["curves"]}
+
+    page.uncheck("#show-curves")  # compare the carried texture alone, without the new tube
+    candidates = pickable_vertices(page)
+    (a1, b1), (a2, b2), (a3, b3) = endpoint_pairs(candidates, 3)
+    waypoint = next(c for c in candidates if c["id"] not in (a2["id"], b2["id"]))
+    added = []
+    for points in ([a1, b1], [a2, waypoint, b2], [a3, b3]):
+        before = canvas_pixels(page, "target")
+        sample = click_curve(page, points)
+        changed = changed_fraction(before, canvas_pixels(page, "target"))
+        assert changed > MIN_CHANGED, f"the target barely changed ({changed:.4f}) after a curve ({sample})"
+        new = [curve for curve in session(demo)["curves"] if curve["id"] not in known]
+        assert len(new) == 1, new
+        clicked = [point["id"] for point in points]
+        assert new[0]["spec"]["source"] == clicked and new[0]["spec"]["target"] == clicked
+        assert new[0]["tracer"] == "geodesic" and len(new[0]["path_source"]) >= 2
+        assert sample["kind"] == "add" and sample["totalMs"] > 0
+        known.add(new[0]["id"])
+        added.append(new[0]["id"])
+    page.check("#show-curves")
+    next_frames(page)
+    screenshot(page, "02-three-curves-clicked")
+    assert page.locator("#curve-list li").count() == len(known)
+    assert "click→texture" in page.text_content("#status-line")
+
+    removed = added[0]
+    page.click(f'#curve-list li[data-curve-id="{removed}"] button[data-action="delete"]')
+    page.wait_for_selector(f'#curve-list li[data-curve-id="{removed}"]', state="detached")
+    wait_until(lambda: removed not in {c["id"] for c in session(demo)["curves"]}, f"{removed} is deleted")
+
+    page.select_option("#converter-select", "nearest-neighbor")
+    page.click("#refine-button")
+    page.wait_for_selector("#refine-progress .progress-row.ok", timeout=60_000)
+    page.wait_for_function('document.querySelector(\'input[name="map"][value="pointwise"]\').checked')
+    next_frames(page)
+    screenshot(page, "03-refined-pointwise")
+
+    with page.expect_download() as download:
+        page.click('#downloads a[download="map_target_to_source.txt"]')
+    lines = Path(download.value.path()).read_text().split()
+    assert len(lines) == target["n_file_vertices"]
+    values = np.array(lines, dtype=np.int64)
+    assert values.min() >= 0 and values.max() < source["n_file_vertices"]
+
+    with page.expect_download() as download:
+        page.click("#download-c")
+    C = np.load(download.value.path())
+    live = demo.client.get(f"/sessions/{DEMO_SESSION}/map").json()
+    np.testing.assert_allclose(C, np.array(live["C_source_to_target"]), rtol=0, atol=1e-12)
+
+
+@needs_chromium
+def test_errors_are_shown_and_the_page_stays_usable(page, demo):
+    page.click("#pair-panel summary")  # upload lives in the shapes panel, folded while a session is open
+    page.set_input_files("#upload-input", files=[{"name": "notes.txt", "mimeType": "text/plain", "buffer": b"hi"}])
+    page.wait_for_selector(".toast.error:has-text('unsupported mesh format')")
+    page.set_input_files("#upload-input", files=[{"name": "broken.off", "mimeType": "text/plain", "buffer": b"OFF\n3"}])
+    page.wait_for_selector("#pair-progress .progress-row.failed:has-text('broken.off')")
+
+    page.route("**/jobs/*", lambda route: route.fulfill(json=failed_job()))
+    page.click("#refine-button")
+    page.wait_for_selector("#refine-progress .progress-row.failed:has-text('worker exploded')")
+    page.unroute("**/jobs/*")
+    assert page.is_enabled("#refine-button")
+
+    for pattern in ("**/sessions/**", "**/health"):
+        page.route(pattern, lambda route: route.abort("connectionrefused"))
+    (a, b), (c, d) = endpoint_pairs(pickable_vertices(page), 2, seed=1)
+    curves_before = len(session(demo)["curves"])
+    for point in (a, b):
+        for side in ("source", "target"):
+            page.mouse.click(*point[side])
+    page.wait_for_selector("#banner:has-text('cannot be reached')")
+    page.wait_for_selector(".toast.error:has-text('The curve was not added')")
+    screenshot(page, "04-connection-lost")
+    page.unroute_all()
+    page.wait_for_selector("#banner", state="hidden", timeout=15_000)
+
+    click_curve(page, [c, d])
+    assert len(session(demo)["curves"]) == curves_before + 1
+    screenshot(page, "05-usable-after-errors")
+
+
+def failed_job() -> dict:
+    return {
+        "id": "mocked",
+        "kind": "refine",
+        "state": "failed",
+        "progress": 0.3,
+        "message": "failed",
+        "error": "worker exploded",
+        "links": {},
+    }
+
+
+def test_mount_ui_names_a_missing_three_js(tmp_path, monkeypatch):
+    monkeypatch.setenv("CURVEFM_THREE_DIR", str(tmp_path / "nowhere"))
+    app = FastAPI()
+    mount_ui(app)
+
+    async def get(*paths: str) -> list[httpx.Response]:
+        async with httpx.AsyncClient(transport=httpx.ASGITransport(app=app), base_url="http://ui") as client:
+            return [await client.get(path) for path in paths]
+
+    # a thread of its own: Playwright's sync API may hold this thread's event loop
+    with ThreadPoolExecutor(1) as pool:
+        fetched = pool.submit(asyncio.run, get("/vendor/three/build/three.module.js", "/", "/app.js"))
+        three, page, script = fetched.result()
+    assert three.status_code == 404 and "npm install" in three.json()["detail"]
+    assert page.text.startswith("<!doctype html>") and script.status_code == 200

@@ -1,0 +1,118 @@
+"""Driving the web UI in Chromium (Playwright), shared by tests/test_ui.py and benchmarks/bench_ui_latency.py.
+
+Clicks are real mouse clicks at the pixels where the page draws a vertex; the page's test hooks
+(``window.curvefm.vertexToScreen`` / ``screenToVertex``, file ids) say where that is.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import random
+from pathlib import Path
+
+import numpy as np
+
+CHROMIUM = Path(os.environ.get("CURVEFM_CHROMIUM", "/usr/bin/chromium"))
+VIEWPORT = {"width": 1400, "height": 860}
+
+# Vertices a click picks on both viewports (same file id on both shapes: pairs whose vertices correspond by
+# id), sampled on a grid over the source canvas, with the integer pixel positions that pick them.
+_PICKABLE_JS = """
+(grid) => {
+  const snapped = (side, id) => {
+    const p = window.curvefm.vertexToScreen(side, id);
+    if (!p.visible) return null;
+    const x = Math.round(p.x), y = Math.round(p.y);
+    return window.curvefm.screenToVertex(side, x, y) === id ? [x, y] : null;
+  };
+  const box = document.querySelector("#source-view canvas").getBoundingClientRect();
+  const found = new Map();
+  for (let i = 0; i < grid; i++) {
+    for (let j = 0; j < grid; j++) {
+      const x = box.left + ((i + 0.5) / grid) * box.width, y = box.top + ((j + 0.5) / grid) * box.height;
+      const id = window.curvefm.screenToVertex("source", x, y);
+      if (id === null || found.has(id)) continue;
+      const source = snapped("source", id), target = snapped("target", id);
+      if (source && target) found.set(id, { id, source, target });
+    }
+  }
+  return [...found.values()];
+}
+"""
+
+
+def launch(playwright):
+    """Headless Debian Chromium; WebGL comes from SwiftShader with Playwright's default flags."""
+    return playwright.chromium.launch(executable_path=str(CHROMIUM), headless=True, args=["--no-sandbox"])
+
+
+def open_session(page, url: str, session_id: str, timeout_ms: float = 60_000) -> None:
+    """Load the UI on a session and wait until its first texture is drawn; otherwise fail with what the page
+    says (its banner and loading message name the cause, e.g. three.js not installed)."""
+    from playwright.sync_api import TimeoutError as PlaywrightTimeout
+
+    page.goto(f"{url}/?session={session_id}")
+    try:
+        page.wait_for_function("window.curvefm && window.curvefm.ready", timeout=timeout_ms)
+    except PlaywrightTimeout:
+        said = page.evaluate("[...document.querySelectorAll('#banner, #loading, .toast')].map((e) => e.innerText)")
+        raise AssertionError(f"the UI did not show session {session_id}: {said}") from None
+
+
+def pickable_vertices(page, grid: int = 24) -> list[dict]:
+    """[{id, source: [x, y], target: [x, y]}]: vertices clickable at those pixels on both shapes."""
+    return page.evaluate(_PICKABLE_JS, grid)
+
+
+def endpoint_pairs(candidates: list[dict], count: int, seed: int = 0, min_distance: float = 80) -> list[tuple]:
+    """``count`` different pairs of candidates at least ``min_distance`` pixels apart on both shapes."""
+
+    def apart(a: dict, b: dict) -> bool:
+        return all(np.hypot(*np.subtract(a[side], b[side])) >= min_distance for side in ("source", "target"))
+
+    pairs = [(a, b) for i, a in enumerate(candidates) for b in candidates[i + 1 :] if apart(a, b)]
+    if len(pairs) < count:
+        raise AssertionError(f"only {len(pairs)} of {count} well separated vertex pairs are clickable")
+    return random.Random(seed).sample(pairs, count)
+
+
+def sample_count(page) -> int:
+    return page.evaluate("window.curvefmStats.samples.length")
+
+
+def click_curve(page, points: list[dict], timeout_ms: float = 30_000) -> dict:
+    """Click a curve through ``points`` (start, Shift+clicked waypoints, end) on the source, then on the
+    target; wait until the new texture is drawn and return the page's timing sample of that edit. Clicks are
+    paced as a person's would be: each waits until the marker of the one before is on screen."""
+    before = sample_count(page)
+    clicks = [(side, index, point) for side in ("source", "target") for index, point in enumerate(points)]
+    for number, (side, index, point) in enumerate(clicks):
+        waypoint = 0 < index < len(points) - 1
+        if waypoint:
+            page.keyboard.down("Shift")
+        page.mouse.click(*point[side])
+        if waypoint:
+            page.keyboard.up("Shift")
+        if number < len(clicks) - 1:
+            next_frames(page)
+    page.wait_for_function(f"window.curvefmStats.samples.length > {before}", timeout=timeout_ms)
+    return page.evaluate("window.curvefmStats.last")
+
+
+def next_frames(page) -> None:
+    """Wait for two animation frames: whatever the page changed before is on screen."""
+    page.evaluate("new Promise((done) => requestAnimationFrame(() => requestAnimationFrame(done)))")
+
+
+def canvas_pixels(page, side: str) -> np.ndarray:
+    """The drawn pixels of one viewport's canvas (RGB, uint8)."""
+    from PIL import Image
+
+    png = page.locator(f"#{side}-view canvas").screenshot()
+    return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"))
+
+
+def changed_fraction(before: np.ndarray, after: np.ndarray, threshold: int = 12) -> float:
+    """Share of pixels whose colour moved by more than ``threshold`` in some channel."""
+    return float((np.abs(before.astype(int) - after.astype(int)).max(axis=2) > threshold).mean())
