@@ -8,19 +8,25 @@ from curvefm.basis import Basis
 
 
 def transfer(C_MN: np.ndarray, basis_M: Basis, basis_N: Basis, values_M: np.ndarray) -> np.ndarray:
-    """Carry per-vertex values on M (shape (m,) or (m, d)) to per-vertex values on N."""
+    """Carry per-vertex values on M (shape (m,) or (m, d)) to per-vertex values on N (float32)."""
     return FunctionTransfer(basis_M, basis_N, values_M).apply(C_MN)
 
 
 class FunctionTransfer:
-    """A function on M projected once; :meth:`apply` carries it through any new map in O(n k d)."""
+    """A function on M projected once; :meth:`apply` carries it through any new map in O(n k d).
+
+    The product with N's basis runs in float32: with a few columns it is bound by reading the n x k basis
+    from memory, and half the bytes halve the time (30k vertices, k = 120: 6.7 -> ~3 ms). Carried values are
+    for display and texture coordinates, where 1e-7 relative is exact enough.
+    """
 
     def __init__(self, basis_M: Basis, basis_N: Basis, values_M: np.ndarray):
         self.values_shape = np.shape(values_M)[1:]
         self.coefficients = basis_M.project(values_M).reshape(basis_M.k, -1)
-        self.evecs_N = basis_N.evecs
+        self.evecs_N = basis_N.evecs.astype(np.float32)
 
     def apply(self, C_MN: np.ndarray) -> np.ndarray:
         k_N, k_M = C_MN.shape
-        out = self.evecs_N[:, :k_N] @ (C_MN @ self.coefficients[:k_M])
+        carried = (C_MN @ self.coefficients[:k_M]).astype(np.float32)
+        out = self.evecs_N[:, :k_N] @ carried
         return out.reshape((len(out),) + self.values_shape)
