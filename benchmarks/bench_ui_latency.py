@@ -25,14 +25,13 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 import httpx
 import numpy as np
-from common import REPO, machine, shared_data
+from common import REPO, machine, shared_data, start_server
 
 sys.path.insert(0, str(REPO / "tests"))
 from ui_helpers import (  # noqa: E402  (shared with the browser tests)
@@ -64,30 +63,6 @@ const tick = (now) => {
 };
 requestAnimationFrame(tick);
 """
-
-
-def start_server(data: Path) -> tuple[subprocess.Popen, str]:
-    port = free_port()
-    command = [sys.executable, "-m", "curvefm.service", "--port", str(port), "--data", str(data)]
-    server = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    url = f"http://127.0.0.1:{port}"
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline:
-        try:
-            if httpx.get(f"{url}/health", timeout=1).status_code == 200:
-                return server, url
-        except httpx.TransportError:
-            time.sleep(0.1)
-    server.kill()
-    raise SystemExit("the server did not start")
-
-
-def free_port() -> int:
-    import socket
-
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def prepare_session(client: httpx.Client, names: tuple[str, str]) -> tuple[str, int]:

@@ -2,11 +2,15 @@
 
 import os
 import platform
+import socket
 import statistics
+import subprocess
 import sys
 import time
 from datetime import date
 from pathlib import Path
+
+import httpx
 
 from curvefm.store import Store
 
@@ -37,3 +41,22 @@ def median_ms(fn, repeat: int) -> float:
         fn()
         times.append(time.perf_counter() - start)
     return 1e3 * statistics.median(times)
+
+
+def start_server(data: Path) -> tuple[subprocess.Popen, str]:
+    """An embedded-mode ``curvefm serve`` on a free port with data in ``data``: (process, base url)."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    command = [sys.executable, "-m", "curvefm.service", "--port", str(port), "--data", str(data)]
+    server = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    url = f"http://127.0.0.1:{port}"
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        try:
+            if httpx.get(f"{url}/health", timeout=1).status_code == 200:
+                return server, url
+        except httpx.TransportError:
+            time.sleep(0.1)
+    server.kill()
+    raise SystemExit("the server did not start")
