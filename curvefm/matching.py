@@ -56,6 +56,11 @@ def read_curves(path: str | Path) -> list[CurveSpec]:
         raise CurvefmError(f"curves file {path}: {where}: {first['msg']}") from None
 
 
+def converter_basis_size(params: BaseModel) -> int:
+    """Basis functions per shape a converter works with (its params' ``basis_size()``, 0 if it has none)."""
+    return params.basis_size() if hasattr(params, "basis_size") else 0
+
+
 def trace_pair(mesh_M: Mesh, mesh_N: Mesh, spec: CurveSpec, default_tracer: str) -> tuple[np.ndarray, np.ndarray]:
     tracer = spec.tracer or default_tracer
     paths = []
@@ -78,9 +83,10 @@ class MatchResult:
     paths: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
 
     def problem(self) -> MapProblem:
+        """The converter's input: the full bases (they may hold more functions than the maps' k)."""
         return MapProblem(
-            self.mesh_M.vertices, self.mesh_M.faces, self.solver.basis_M,
-            self.mesh_N.vertices, self.mesh_N.faces, self.solver.basis_N,
+            self.mesh_M.vertices, self.mesh_M.faces, self.basis_M,
+            self.mesh_N.vertices, self.mesh_N.faces, self.basis_N,
             self.solver.C_MN, self.solver.C_NM,
         )
 
@@ -105,8 +111,9 @@ def match(
     store = store or Store()
     convert = registry.get("converter", converter)
     parsed = convert.parse_params(converter_params)
-    basis_M = store.ensure_basis(mesh_M, k, progress=scaled(progress, 0.0, 0.4))
-    basis_N = store.ensure_basis(mesh_N, k, progress=scaled(progress, 0.4, 0.8))
+    basis_k = max(k, converter_basis_size(parsed))  # refiners such as ZoomOut work in larger bases
+    basis_M = store.ensure_basis(mesh_M, basis_k, progress=scaled(progress, 0.0, 0.4))
+    basis_N = store.ensure_basis(mesh_N, basis_k, progress=scaled(progress, 0.4, 0.8))
     paths = [trace_pair(mesh_M, mesh_N, c, tracer) if isinstance(c, CurveSpec) else c for c in curves]
     if not paths:
         raise CurvefmError("at least one pair of curves is needed to compute a map")

@@ -6,8 +6,9 @@ from typing import Annotated
 
 from fastapi import APIRouter, Query, Response
 
+from curvefm.basis import check_k
 from curvefm.errors import CurvefmError
-from curvefm.matching import CurveSpec
+from curvefm.matching import CurveSpec, converter_basis_size
 from curvefm.service.deps import ServicesDep, job_model
 from curvefm.service.errors import require_plugin
 from curvefm.service.models import (
@@ -104,7 +105,12 @@ def refine(session_id: str, body: RefineRequest, services: ServicesDep) -> JobIn
     ``map_target_to_source.txt`` (line j: source vertex for target vertex j, file ids), the other direction,
     the same maps as ``.npy``, both functional maps and a textured target OBJ."""
     record = services.sessions.record(session_id)
-    params = require_plugin("converter", body.converter).parse_params(body.params).model_dump()
+    parsed = require_plugin("converter", body.converter).parse_params(body.params)
+    size = converter_basis_size(parsed)
+    if size:  # a basis the shapes cannot have is a bad request now, not a failed job later
+        smallest = min(services.sessions.mesh(s).n_vertices for s in (record.source, record.target))
+        check_k(size, smallest, f"the smaller shape of session {session_id}")
+    params = parsed.model_dump()
     if not record.curves:
         raise CurvefmError(f"session {session_id} has no curves yet; add at least one before refining", kind="conflict")
     kwargs = {

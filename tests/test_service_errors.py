@@ -119,6 +119,14 @@ def test_unknown_plugins_list_what_is_installed(server):
     assert "nearest-neighbor" in body["available"]
 
 
+def test_refine_parameters_are_checked_at_submission(server):
+    refine = f"/sessions/{server.session}/refine"
+    body = {"converter": "zoomout", "params": {"k_init": 20, "k_final": 10}}
+    expect(server.client.post(refine, json=body), 400, "invalid", "zoomout")
+    body = {"converter": "rhm", "params": {"max_iterations": -3}}
+    expect(server.client.post(refine, json=body), 400, "invalid", "rhm")
+
+
 def test_unknown_parameters_are_named(server):
     bases = f"/shapes/{server.shapes[0]}/bases"
     expect(

@@ -6,6 +6,7 @@ store, refinement results into ``<data>/results/<job id>/`` (published all at on
 
 from __future__ import annotations
 
+import dataclasses
 import shutil
 import tempfile
 from pathlib import Path
@@ -14,7 +15,7 @@ import numpy as np
 
 from curvefm import registry
 from curvefm.errors import CurvefmError
-from curvefm.matching import MatchResult, write_outputs
+from curvefm.matching import MatchResult, converter_basis_size, write_outputs
 from curvefm.progress import scaled
 from curvefm.store import Store, params_key
 from curvefm.workers.context import running_job
@@ -53,7 +54,12 @@ def refine(data_dir: str, session: dict, converter: str = "nearest-neighbor", pa
         if not record.curves:
             raise CurvefmError(f"session {record.id} has no curves; add at least one before refining")
         job.progress(0.0, "loading shapes and bases")
-        pair = load_pair(Store(data_dir), record)
+        store = Store(data_dir)
+        pair = load_pair(store, record)
+        size = converter_basis_size(parsed)
+        if size > record.k:  # e.g. ZoomOut's k_final: compute (or find) and keep the larger bases
+            larger = (store.ensure_basis(m, size, record.basis_plugin, record.basis_params) for m in pair.meshes)
+            pair = dataclasses.replace(pair, **dict(zip(("basis_M", "basis_N"), larger, strict=True)))
         solver, _ = build_solver(record, pair)
         paths = [internal_paths(pair, curve) for curve in record.curves]
         result = MatchResult(pair.mesh_M, pair.mesh_N, pair.basis_M, pair.basis_N, solver, paths=paths)

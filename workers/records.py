@@ -58,6 +58,10 @@ class ShapePair:
     basis_M: Basis
     basis_N: Basis
 
+    @property
+    def meshes(self) -> tuple[Mesh, Mesh]:
+        return self.mesh_M, self.mesh_N
+
 
 def basis_available(store: Store, mesh_id: str, k: int, plugin: str, params: dict) -> bool:
     """Whether a basis with at least k functions exists, without loading it."""

@@ -1,0 +1,139 @@
+"""Time and error of each converter from the 10-curve maps, on FAUST 000 -> 011 and cat -> lion (prints JSON).
+
+The 10 curves follow the core issue's protocol (:mod:`curvefm.experiment`); every converter starts from the
+same two functional maps (k = 120, the session defaults). Errors are mean geodesic error / sqrt(area of the
+mesh each map lands on), both directions. ``seconds`` is the converter alone (bases and curves are ready), the
+median of ``--repeat`` runs. ``worker`` runs ``rhm`` with its defaults on FAUST as a refinement job on the in-process
+queue (the same job function RQ workers run) and records the wall time and the progress reports seen.
+
+    python benchmarks/bench_converters.py [--repeat 1] [--variants]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import time
+
+import numpy as np
+from common import bench_store, machine, shared_data
+
+from curvefm import registry
+from curvefm.evaluation import evaluate_map, ground_truth_for
+from curvefm.experiment import ground_truth_curves, score
+from curvefm.matching import CurveSpec, MatchResult, match
+from curvefm.mesh import load_mesh
+from curvefm.store import Store
+from curvefm.workers.queue import EmbeddedQueue
+from curvefm.workers.records import CurveRecord, SessionRecord
+
+PAIRS = {
+    "faust_000_011": ("faust/tr_reg_000.off", "faust/tr_reg_011.off"),
+    "cat_lion": ("nonisometric/pyfm_cat_lion/cat-00.off", "nonisometric/pyfm_cat_lion/lion-00.off"),
+}
+CONVERTERS = [
+    ("nearest-neighbor", {}),
+    ("icp", {}),
+    ("zoomout", {}),
+    ("zoomout", {"samples": 2000}),
+    ("rhm", {}),
+]
+VARIANTS = [
+    ("zoomout", {"embedding": "both"}),
+    ("zoomout", {"k_init": 120, "k_final": 200}),
+    ("icp", {"k": 50, "k_image": 50}),
+    ("rhm", {"init": "nearest-neighbor"}),
+    ("rhm", {"projection": "triangle"}),
+]
+
+
+def errors(result: MatchResult, maps, truth) -> dict:
+    reverse = (truth.ids_Y, truth.ids_X)
+    return {
+        "source_to_target": evaluate_map(maps.p2p_MN, truth, result.mesh_N).mean_area,
+        "target_to_source": evaluate_map(maps.p2p_NM, reverse, result.mesh_M).mean_area,
+    }
+
+
+def run_converter(result: MatchResult, truth, name: str, params: dict, repeat: int) -> dict:
+    plugin = registry.get("converter", name)
+    parsed = plugin.parse_params(params)
+    times, maps, last = [], None, ""
+
+    def progress(fraction: float, message: str) -> None:
+        nonlocal last
+        last = message
+
+    for _ in range(repeat):
+        start = time.perf_counter()
+        maps = plugin.run(result.problem(), parsed, progress)
+        times.append(time.perf_counter() - start)
+    return {"converter": name, "params": params, "seconds": statistics.median(times), "last_message": last} | errors(
+        result, maps, truth
+    )
+
+
+def session_record(store: Store, result: MatchResult, curves) -> dict:
+    """The refinement job's input: a session snapshot with the curves as explicit file-id paths."""
+    mesh_M, mesh_N, solver = result.mesh_M, result.mesh_N, result.solver
+    records = []
+    for i, (path_M, path_N) in enumerate(curves):
+        ids_M, ids_N = mesh_M.file_ids[path_M].tolist(), mesh_N.file_ids[path_N].tolist()
+        spec = CurveSpec(source=ids_M, target=ids_N, explicit=True)
+        records.append(CurveRecord(id=f"c{i}", spec=spec, tracer="geodesic", path_source=ids_M, path_target=ids_N))
+    return SessionRecord(
+        id="bench", source=store.put_mesh(mesh_M), target=store.put_mesh(mesh_N), k=solver.k, alpha=solver.alpha,
+        samples=solver.samples, tracer="geodesic", basis_plugin="laplace-beltrami",
+        basis_params={"laplacian": "cotangent"}, curves=records, created_at=time.time(), updated_at=time.time(),
+    ).model_dump()  # fmt: skip
+
+
+def run_worker_job(store: Store, result: MatchResult, curves, truth) -> dict:
+    """``rhm`` (defaults) as a refine job on the in-process queue, polled like the API polls it."""
+    queue = EmbeddedQueue(max_workers=1)
+    kwargs = {"data_dir": str(store.root), "session": session_record(store, result, curves), "converter": "rhm"}
+    start = time.perf_counter()
+    try:
+        job_id = queue.submit("refine", kwargs).id
+        reports = []
+        while (info := queue.get(job_id)).state not in ("finished", "failed", "canceled"):
+            if not reports or reports[-1] != (info.progress, info.message):
+                reports.append((info.progress, info.message))
+            time.sleep(0.1)
+    finally:
+        queue.close()
+    seconds = time.perf_counter() - start
+    out = {"converter": "rhm", "state": info.state, "wall_seconds": seconds, "progress_reports": len(reports)}
+    if info.state != "finished":
+        return out | {"error": info.error}
+    p2p_file = np.load(store.root / "results" / job_id / "p2p_source_to_target.npy")
+    p2p_MN = result.mesh_N.internal_ids(p2p_file[result.mesh_M.file_ids])
+    return out | {"source_to_target": evaluate_map(p2p_MN, truth, result.mesh_N).mean_area}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=1, help="runs per converter (median time)")
+    parser.add_argument("--variants", action="store_true", help="also run non-default variants (slow: minutes)")
+    parser.add_argument("--no-worker", action="store_true", help="skip the refinement job on the in-process queue")
+    args = parser.parse_args()
+    data, store = shared_data(), bench_store()
+    report = {"machine": machine(), "curves": 10, "k": 120, "pairs": {}}
+    for pair, (source, target) in PAIRS.items():
+        mesh_M, mesh_N = load_mesh(data / source), load_mesh(data / target)
+        truth = ground_truth_for(data / source, data / target, mesh_M, mesh_N)
+        curves = ground_truth_curves(mesh_M, mesh_N, truth, 10)
+        result = match(mesh_M, mesh_N, curves, store=store)
+        entry = {"vertices": [mesh_M.n_vertices, mesh_N.n_vertices], "start": score(result, truth)}
+        entry["start"] = {d: entry["start"][d]["mean_area"] for d in entry["start"]}
+        runs = CONVERTERS + (VARIANTS if args.variants else [])
+        entry["converters"] = [run_converter(result, truth, name, params, args.repeat) for name, params in runs]
+        if not args.no_worker and pair == "faust_000_011":
+            entry["worker"] = run_worker_job(store, result, curves, truth)
+        report["pairs"][pair] = entry
+    print(json.dumps(report, indent=2))
+
+
+if __name__ == "__main__":
+    main()
