@@ -38,8 +38,8 @@ function finishTexture(texture) {
   return texture;
 }
 
-/** Source coordinates scaled to [0, 1] per axis (n x 3), as the service's ``xyz`` function. */
-export function xyzValues(vertices) {
+/** Per-axis bounds of packed xyz vertices: { low: [x, y, z], high: [x, y, z] }. */
+export function bounds(vertices) {
   const low = [Infinity, Infinity, Infinity];
   const high = [-Infinity, -Infinity, -Infinity];
   for (let i = 0; i < vertices.length; i += 3) {
@@ -48,6 +48,12 @@ export function xyzValues(vertices) {
       high[c] = Math.max(high[c], vertices[i + c]);
     }
   }
+  return { low, high };
+}
+
+/** Source coordinates scaled to [0, 1] per axis (n x 3), as the service's ``xyz`` function. */
+export function xyzValues(vertices) {
+  const { low, high } = bounds(vertices);
   const out = new Float32Array(vertices.length);
   for (let i = 0; i < vertices.length; i += 3) {
     for (let c = 0; c < 3; c++) out[i + c] = (vertices[i + c] - low[c]) / Math.max(high[c] - low[c], 1e-30);

@@ -2,6 +2,7 @@
 // nearest vertex of the hit face, traced curves as tubes, and per-vertex uv / colours updated in place.
 import * as THREE from "three";
 import { OrbitControls } from "three/addons/controls/OrbitControls.js";
+import { bounds } from "./functions.js";
 
 const CLICK_SLOP_PX = 5; // a press that moves further is an orbit/pan, not a click
 const AXES = { x: new THREE.Vector3(1, 0, 0), y: new THREE.Vector3(0, 1, 0), z: new THREE.Vector3(0, 0, 1) };
@@ -64,14 +65,7 @@ export function drawn(viewport) {
  * TOSCA and most scanned data, unless the shape is thinnest along z (then y, the graphics convention of FAUST
  * and SMPL-like bodies). The viewer looks along the thinnest remaining axis, so the shape shows its broad side. */
 export function chooseAxes(vertices, up) {
-  const low = [Infinity, Infinity, Infinity];
-  const high = [-Infinity, -Infinity, -Infinity];
-  for (let i = 0; i < vertices.length; i += 3) {
-    for (let c = 0; c < 3; c++) {
-      low[c] = Math.min(low[c], vertices[i + c]);
-      high[c] = Math.max(high[c], vertices[i + c]);
-    }
-  }
+  const { low, high } = bounds(vertices);
   const names = ["x", "y", "z"];
   const byExtent = [0, 1, 2].sort((a, b) => high[a] - low[a] - (high[b] - low[b])).map((c) => names[c]);
   const upAxis = up === "auto" ? (byExtent[0] === "z" ? "y" : "z") : up;
