@@ -358,10 +358,16 @@ def _load_off(path: Path, name: str) -> Mesh:
         body = tokens[1 if tokens[0][1:] else 2 :]
         if len(body) < n_vertices + n_faces:
             raise ValueError(f"header promises {n_vertices} vertices and {n_faces} faces, file is shorter")
-        vertices = [row[:3] for row in body[:n_vertices]]
-        faces = [row[1 : 1 + int(row[0])] for row in body[n_vertices : n_vertices + n_faces]]
-        vertices = np.array(vertices, dtype=np.float64)
-        faces = [[int(i) for i in face] for face in faces]
+        vertex_rows, face_rows = body[:n_vertices], body[n_vertices : n_vertices + n_faces]
+        if any(len(row) < 3 for row in vertex_rows):
+            raise ValueError("a vertex line has fewer than three coordinates")
+        vertices = np.array([row[:3] for row in vertex_rows], dtype=np.float64)
+        if any(len(row) < 1 + int(row[0]) for row in face_rows):
+            raise ValueError("a face line lists fewer vertex ids than it declares")
+        if all(row[0] == "3" for row in face_rows):  # the common all-triangle file: one array conversion
+            faces = np.array([row[1:4] for row in face_rows], dtype=np.int64)
+        else:
+            faces = [[int(i) for i in row[1 : 1 + int(row[0])]] for row in face_rows]
     except (ValueError, IndexError) as exc:
         raise CurvefmError(f"{path.name} is not a valid OFF file: {exc}") from None
     return build_mesh(vertices, faces, name=name)

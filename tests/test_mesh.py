@@ -136,6 +136,8 @@ def test_huge_meshes_are_rejected(monkeypatch):
     "name, content, message",
     [
         ("bad.off", "this is not a mesh\n", "not an OFF file"),
+        ("cut.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1\n", "fewer vertex ids than it declares"),
+        ("short.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n", "file is shorter"),
         ("empty.ply", "", "could not read any vertices"),
         ("broken.obj", "v 0 0 zero\n", "not a valid OBJ"),
         ("mesh.xyz", "1 2 3\n", "unsupported mesh format"),
