@@ -17,6 +17,7 @@ from curvefm.mesh import SUPPORTED_FORMATS, Mesh, load_mesh
 from curvefm.service.deps import Services, ServicesDep, job_model, submit_basis
 from curvefm.service.errors import require_plugin
 from curvefm.service.models import BasisInfo, BasisRequest, ErrorBody, JobInfoModel, ShapeInfo
+from curvefm.texture import texture_coordinates
 
 router = APIRouter(tags=["shapes"])
 ERRORS = {status: {"model": ErrorBody} for status in (400, 404, 409, 413)}
@@ -71,8 +72,9 @@ def get_shape_mesh(shape_id: str, services: ServicesDep, format: Literal["binary
     multiple of 4), then the arrays back to back. The header's ``arrays`` gives each array's ``dtype``
     (``float32`` or ``uint32``), ``shape`` and byte ``offset`` counted from the end of the header, so
     ``new Float32Array(buffer, 4 + H + offset, n * 3)`` reads the vertices. Arrays: ``vertices`` (n x 3),
-    ``faces`` (f x 3, internal ids), ``file_ids`` (n: file id of each vertex) and, if the file had them,
-    ``uv`` (n x 2). ``json``: the same arrays as nested lists.
+    ``faces`` (f x 3, internal ids), ``file_ids`` (n: file id of each vertex), ``texcoords`` (n x 2: the
+    texture coordinates the ``uv`` transfer carries, the file's own or generated cylindrical ones) and, if the
+    file had them, ``uv`` (n x 2). ``json``: the same arrays as nested lists.
     """
     mesh = services.sessions.mesh(shape_id)
     if format == "json":
@@ -122,6 +124,7 @@ def _mesh_arrays(mesh: Mesh) -> dict[str, np.ndarray]:
         "vertices": mesh.vertices.astype("<f4"),
         "faces": mesh.faces.astype("<u4"),
         "file_ids": mesh.file_ids.astype("<u4"),
+        "texcoords": texture_coordinates(mesh).astype("<f4"),
     }
     if mesh.uv is not None:
         arrays["uv"] = mesh.uv.astype("<f4")

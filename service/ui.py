@@ -10,13 +10,9 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from fastapi import FastAPI, Response
+from fastapi import FastAPI
 from fastapi.responses import JSONResponse
 from fastapi.staticfiles import StaticFiles
-
-from curvefm.service.deps import ServicesDep
-from curvefm.service.models import ErrorBody
-from curvefm.texture import texture_coordinates
 
 STATIC_DIR = Path(__file__).parent / "static"
 VENDOR_URL = "/vendor/three"
@@ -30,17 +26,6 @@ def three_dir() -> Path:
 
 def mount_ui(app: FastAPI) -> None:
     """Add the UI to ``app``: call it after the API routers (the catch-all ``/`` mount comes last)."""
-
-    @app.get(
-        "/ui/texcoords/{shape_id}",
-        responses={200: {"content": {"application/octet-stream": {}}}, 404: {"model": ErrorBody}},
-        tags=["ui"],
-    )
-    def get_texcoords(shape_id: str, services: ServicesDep) -> Response:
-        """The texture coordinates the ``uv`` transfer carries: the shape's own, else generated cylindrical
-        ones. float32 little-endian, ``n x 2`` row-major in internal vertex order (as the mesh payload)."""
-        uv = texture_coordinates(services.sessions.mesh(shape_id))
-        return Response(uv.astype("<f4").tobytes(), media_type="application/octet-stream")
 
     three = three_dir()
     if (three / "build" / "three.module.js").is_file():

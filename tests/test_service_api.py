@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from curvefm.service.demo import demo_shapes
+from curvefm.texture import texture_coordinates
 
 K = 30
 
@@ -51,6 +52,7 @@ def test_shapes_are_listed_and_their_mesh_decodes(server):
     assert np.allclose(array("vertices"), mesh.vertices, atol=1e-5)
     assert np.array_equal(array("faces"), mesh.faces)
     assert np.array_equal(array("file_ids"), np.arange(4098))
+    assert np.allclose(array("texcoords"), texture_coordinates(mesh), atol=1e-6)  # what the uv transfer carries
     as_json = server.client.get(f"/shapes/{server.shapes[0]}/mesh", params={"format": "json"}).json()
     assert np.array_equal(as_json["faces"], mesh.faces)
 

@@ -1,5 +1,5 @@
 // The curvefm HTTP API: JSON in and out, binary payloads as ArrayBuffer, every failure as an ApiError.
-// Vertex ids in JSON are file ids; binary payloads (mesh, transfer, texcoords) follow internal vertex order.
+// Vertex ids in JSON are file ids; binary payloads (mesh, transfer) follow internal vertex order.
 
 export class ApiError extends Error {
   /** kind: the service's error kind (invalid, not_found, conflict, too_large) or "network". */
@@ -69,7 +69,6 @@ export const api = {
   shapes: () => request("GET", "/shapes"),
   shape: (id) => request("GET", `/shapes/${enc(id)}`),
   mesh: (id) => request("GET", `/shapes/${enc(id)}/mesh`, { as: "binary" }),
-  texcoords: (id) => request("GET", `/ui/texcoords/${enc(id)}`, { as: "binary" }),
   uploadShape(file) {
     const form = new FormData();
     form.append("file", file, file.name);

@@ -5,6 +5,7 @@ import { curveColor, History, PendingCurve, renderCurveList } from "./curves.js"
 import { listJobFiles, npyBlob, saveBlob } from "./downloads.js";
 import { parametersForm } from "./forms.js";
 import {
+  bounds,
   checkerboardTexture,
   imageTexture,
   pullBack,
@@ -192,24 +193,15 @@ async function openSession(id) {
 }
 
 async function loadShape(id, withFunctions) {
-  const [info, payload, uv] = await Promise.all([
-    api.shape(id),
-    api.mesh(id),
-    withFunctions ? api.texcoords(id) : null,
-  ]);
+  const [info, payload] = await Promise.all([api.shape(id), api.mesh(id)]);
   const mesh = decodeMesh(payload.buffer);
   const shape = { info, mesh, diagonal: diagonal(mesh.vertices) };
-  if (withFunctions) Object.assign(shape, { uv: new Float32Array(uv.buffer), xyz: xyzValues(mesh.vertices) });
+  if (withFunctions) Object.assign(shape, { uv: mesh.texcoords, xyz: xyzValues(mesh.vertices) });
   return shape;
 }
 
 function diagonal(vertices) {
-  const low = [Infinity, Infinity, Infinity];
-  const high = [-Infinity, -Infinity, -Infinity];
-  for (let i = 0; i < vertices.length; i++) {
-    low[i % 3] = Math.min(low[i % 3], vertices[i]);
-    high[i % 3] = Math.max(high[i % 3], vertices[i]);
-  }
+  const { low, high } = bounds(vertices);
   return Math.hypot(high[0] - low[0], high[1] - low[1], high[2] - low[2]);
 }
 

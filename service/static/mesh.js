@@ -30,6 +30,7 @@ export function decodeMesh(buffer) {
     faces,
     fileIds,
     fileToInternal,
+    texcoords: arrays.texcoords,
   };
 }
 
