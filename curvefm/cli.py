@@ -73,13 +73,14 @@ def cmd_plugins(args) -> int:
     if args.json:
         print(json.dumps(plugins, indent=2))
         return 0
+    plural = {"tracer": "tracers", "basis": "bases", "converter": "converters"}
     for kind, entries in plugins.items():
-        print(f"{kind}s:")
+        print(f"{plural[kind]} (parameters as JSON, e.g. a curve's tracer_params or --refine-params):")
         for entry in entries:
             print(f"  {entry['name']}: {entry['description']}")
             for field, schema in entry["parameters"].get("properties", {}).items():
                 default = f" (default {schema['default']!r})" if "default" in schema else ""
-                print(f"      --{field}{default}: {schema.get('description', '')}")
+                print(f"      {field}{default}: {schema.get('description', '')}")
     return 0
 
 
