@@ -74,8 +74,9 @@ def cmd_plugins(args) -> int:
         print(json.dumps(plugins, indent=2))
         return 0
     plural = {"tracer": "tracers", "basis": "bases", "converter": "converters"}
+    print("Parameters are JSON fields: a curve's tracer_params, match --refine-params, the API's params.")
     for kind, entries in plugins.items():
-        print(f"{plural[kind]} (parameters as JSON, e.g. a curve's tracer_params or --refine-params):")
+        print(f"{plural[kind]}:")
         for entry in entries:
             print(f"  {entry['name']}: {entry['description']}")
             for field, schema in entry["parameters"].get("properties", {}).items():
