@@ -98,6 +98,7 @@ class SessionManager:
             if self._path(record.id).exists():
                 raise CurvefmError(f"session '{record.id}' already exists", kind="conflict")
             self._persist(record)
+            self._load(record.id)  # bases loaded and solver built now, not on the first curve
         return record
 
     def record(self, session_id: str) -> SessionRecord:
@@ -205,6 +206,8 @@ class SessionManager:
             self._basis(record.target, "target", record),
         )
         solver, solver_ids = build_solver(record, pair)
+        for mesh in pair.meshes:
+            mesh.edge_graph  # noqa: B018  (cached property: built here so the first trace answers at once)
         return LiveSession(record, pair, solver, solver_ids, LRU(8))
 
     def _commit(self, live: LiveSession, record: SessionRecord) -> None:
