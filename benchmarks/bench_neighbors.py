@@ -17,11 +17,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import statistics
-import time
 
 import numpy as np
-from common import bench_store, machine, shared_data
+from common import bench_store, machine, median_ms, shared_data
 from scipy.spatial import cKDTree
 
 from curvefm.evaluation import ground_truth_for
@@ -36,15 +34,6 @@ from curvefm.pointwise import fmap_from_pointwise
 TREE_FULL_LIMIT_S = 20.0
 
 
-def median_s(fn, repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
-
-
 def tree_search(data: np.ndarray, queries: np.ndarray, count: int | None) -> np.ndarray:
     rows = queries if count is None else queries[np.random.default_rng(0).choice(len(queries), count, False)]
     return cKDTree(data).query(rows, workers=-1)[1]
@@ -54,15 +43,15 @@ def compare(data: np.ndarray, queries: np.ndarray, repeat: int, tree_queries: in
     data, queries = np.ascontiguousarray(data, np.float32), np.ascontiguousarray(queries, np.float32)
     out = {"data": len(data), "queries": len(queries), "dims": data.shape[1]}
     faiss_ids = nearest_neighbors(data, queries, "faiss")  # also loads faiss before timing
-    out["faiss_s"] = median_s(lambda: nearest_neighbors(data, queries, "faiss"), repeat)
-    out["blocked_s"] = median_s(lambda: nearest_neighbors(data, queries, "blocked"), repeat)
+    out["faiss_s"] = median_ms(lambda: nearest_neighbors(data, queries, "faiss"), repeat) / 1e3
+    out["blocked_s"] = median_ms(lambda: nearest_neighbors(data, queries, "blocked"), repeat) / 1e3
     out["blocked_agrees_with_faiss"] = float(np.mean(nearest_neighbors(data, queries, "blocked") == faiss_ids))
     count = min(tree_queries, len(queries))
-    probe = median_s(lambda: tree_search(data, queries, count), 1)
+    probe = median_ms(lambda: tree_search(data, queries, count), 1) / 1e3
     if probe * len(queries) / count <= TREE_FULL_LIMIT_S:
-        out["cKDTree_s"] = median_s(lambda: tree_search(data, queries, None), repeat)
+        out["cKDTree_s"] = median_ms(lambda: tree_search(data, queries, None), repeat) / 1e3
     else:
-        out["cKDTree_s"] = median_s(lambda: tree_search(data, queries, count), repeat) * len(queries) / count
+        out["cKDTree_s"] = median_ms(lambda: tree_search(data, queries, count), repeat) / 1e3 * len(queries) / count
         out["cKDTree_extrapolated_from"] = count
     return out
 
