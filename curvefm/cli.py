@@ -73,7 +73,7 @@ def cmd_plugins(args) -> int:
     if args.json:
         print(json.dumps(plugins, indent=2))
         return 0
-    plural = {"tracer": "tracers", "basis": "bases", "converter": "converters"}
+    plural = {"tracer": "tracers", "basis": "bases", "converter": "converters", "method": "map methods"}
     print("Parameters are JSON fields: a curve's tracer_params, match --refine-params, the API's params.")
     for kind, entries in plugins.items():
         print(f"{plural[kind]}:")
@@ -82,6 +82,21 @@ def cmd_plugins(args) -> int:
             for field, schema in entry["parameters"].get("properties", {}).items():
                 default = f" (default {schema['default']!r})" if "default" in schema else ""
                 print(f"      {field}{default}: {schema.get('description', '')}")
+    return 0
+
+
+def cmd_reproduce(args) -> int:
+    from curvefm.reproduce import reproduce
+    from curvefm.store import Store
+
+    command = "curvefm " + " ".join(sys.argv[1:]) if sys.argv[1:2] == ["reproduce"] else "curvefm reproduce"
+    results = reproduce(
+        args.out, suite=args.suite, experiments=tuple(args.experiments), report=args.report,
+        store=Store(args.data) if args.data else None, command=command, progress_for=progress_bar,
+    )
+    for claim in results["claims"]:
+        print(f"{claim['verdict']:>14}: {claim['claim']}")
+    print(f"report: {results['report']}")
     return 0
 
 
@@ -126,6 +141,13 @@ def parser() -> argparse.ArgumentParser:
     e.add_argument("--json", action="store_true", help="print the full report as JSON")
     e.set_defaults(run=cmd_evaluate)
 
+    r = sub.add_parser("reproduce", parents=[data], help="rerun the paper's evaluation on ../shared/data")
+    r.add_argument("--out", default="reproduce-results", help="folder for JSON tables and plots (default %(default)s)")
+    r.add_argument("--suite", default="full", help="'full' (about 15 min) or 'ci' (two pairs, about 1 min)")
+    r.add_argument("--experiments", nargs="+", default=["accuracy", "timing"], help="accuracy and/or timing")
+    r.add_argument("--report", help="Markdown report path (default OUT/results.md)")
+    r.set_defaults(run=cmd_reproduce)
+
     s = sub.add_parser("serve", parents=[data], help="run the HTTP API and web UI (jobs in-process without Redis)")
     s.add_argument("--host", default="127.0.0.1")
     s.add_argument("--port", type=int, default=8000)
@@ -143,7 +165,7 @@ def parser() -> argparse.ArgumentParser:
     w.add_argument("--burst", action="store_true", help="exit once the queues are empty")
     w.set_defaults(run=cmd_worker)
 
-    pl = sub.add_parser("plugins", help="list installed tracers, bases and converters with their parameters")
+    pl = sub.add_parser("plugins", help="list installed plugins with their parameters")
     pl.add_argument("--json", action="store_true")
     pl.set_defaults(run=cmd_plugins)
     return p

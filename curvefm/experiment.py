@@ -1,9 +1,11 @@
-"""Curves and scores from ground truth: the protocol of the accuracy tests, ``curvefm evaluate`` and the
-benchmarks.
+"""Curves and scores from ground truth: the protocol of the accuracy tests, ``curvefm evaluate``, the
+benchmarks and ``curvefm reproduce``.
 
-Curve endpoints are 2 x n farthest points on the source (restricted to vertices with a known partner),
-paired in sampling order; a source curve is the geodesic path between its endpoints and its target curve
-is the geodesic path between the ground-truth images of those endpoints ("traced" curves in the paper).
+A source curve is the geodesic path between two endpoints with a known partner. Its target curve is either
+*traced* (the geodesic path between the ground-truth images of the endpoints, what a user clicking both ends
+gets) or *exact* (the source path carried vertex by vertex through a dense ground truth, the paper's
+"pre-labelled" curves). :func:`ground_truth_curves` is the fixed protocol of the tests (2 x n farthest points
+paired in sampling order); :class:`CurvePool` draws seeded random subsets for the curve-count sweeps.
 """
 
 from __future__ import annotations
@@ -44,6 +46,75 @@ def ground_truth_curves(
             )
         )
     return curves
+
+
+class CurvePool:
+    """Candidate endpoints on the source and their partners, from which seeded random curves are drawn.
+
+    With dense ground truth the candidates are ``size`` farthest points (snapped to vertices with a partner);
+    with sparse ground truth (landmarks) they are the landmarks themselves. A subset of n curves is n
+    distinct unordered pairs of candidates, so curves may share an endpoint, as clicked curves often do.
+    """
+
+    def __init__(self, mesh_M: Mesh, mesh_N: Mesh, truth: GroundTruth, size: int = 40):
+        self.mesh_M, self.mesh_N, self.truth = mesh_M, mesh_N, truth
+        self.partner = dict(zip(truth.ids_X.tolist(), truth.ids_Y.tolist(), strict=True))
+        if truth.dense:
+            known = np.fromiter(self.partner, dtype=np.int64)
+            samples = farthest_point_sampling(mesh_M, size)
+            nearest = [known[np.argmin(np.linalg.norm(mesh_M.vertices[known] - mesh_M.vertices[v], axis=1))]
+                       for v in samples]  # fmt: skip
+            self.candidates = np.array(list(dict.fromkeys(int(v) for v in nearest)), dtype=np.int64)
+        else:
+            self.candidates = np.array(list(dict.fromkeys(truth.ids_X.tolist())), dtype=np.int64)
+
+    @property
+    def max_curves(self) -> int:
+        n = len(self.candidates)
+        return n * (n - 1) // 2
+
+    def endpoints(self, count: int, seed: int) -> list[tuple[int, int]]:
+        """``count`` distinct candidate pairs (source vertex ids), the same for the same seed."""
+        if count > self.max_curves:
+            raise CurvefmError(f"{len(self.candidates)} candidate endpoints cannot give {count} distinct curves")
+        rng = np.random.default_rng(seed)
+        chosen: dict[tuple[int, int], None] = {}
+        while len(chosen) < count:
+            a, b = rng.choice(len(self.candidates), size=2, replace=False)
+            chosen[(int(self.candidates[min(a, b)]), int(self.candidates[max(a, b)]))] = None
+        return list(chosen)
+
+    def curves(self, count: int, seed: int, exact: bool) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Corresponding ``(path_M, path_N)`` pairs: traced target curves, or exact ones (dense truth only)."""
+        if exact and not self.truth.dense:
+            raise CurvefmError(f"exact curves need a dense ground truth; '{self.truth.kind}' is sparse")
+        out = []
+        for a, b in self.endpoints(count, seed):
+            path_M = shortest_path(self.mesh_M.edge_graph, a, b)
+            if exact:
+                path_N = carried_path(self.mesh_N, path_M, self.partner)
+            else:
+                path_N = shortest_path(self.mesh_N.edge_graph, self.partner[a], self.partner[b])
+            out.append((path_M, path_N))
+        return out
+
+
+def carried_path(mesh_N: Mesh, path_M: np.ndarray, partner: dict[int, int]) -> np.ndarray:
+    """The image of a source path through the ground truth, as an edge path on N.
+
+    Vertices without a partner are skipped; where consecutive images do not share an edge (a remeshed
+    target, or an approximate ground truth) the gap is closed with the shortest path between them.
+    """
+    images = [partner[int(v)] for v in path_M if int(v) in partner]
+    images = [v for i, v in enumerate(images) if i == 0 or v != images[i - 1]]
+    if len(images) < 2:
+        raise CurvefmError("the ground truth maps the whole curve to a single vertex")
+    images = np.array(images, dtype=np.int64)
+    adjacent = np.asarray(mesh_N.edge_graph[images[:-1], images[1:]]).ravel() > 0
+    path = [images[:1]]
+    for i, (a, b) in enumerate(zip(images[:-1], images[1:], strict=True)):
+        path.append(images[i + 1 : i + 2] if adjacent[i] else shortest_path(mesh_N.edge_graph, a, b)[1:])
+    return np.concatenate(path)
 
 
 def score(result: MatchResult, truth: GroundTruth) -> dict:

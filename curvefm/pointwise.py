@@ -36,10 +36,15 @@ class PointwiseMaps:
     p2p_MN: np.ndarray  # (m,) vertex of N for each vertex of M
 
 
-def pointwise_from_fmap(C_MN: np.ndarray, basis_M: Basis, basis_N: Basis, search: str = "faiss") -> np.ndarray:
-    """``p2p_NM`` from ``C_MN`` alone: for each y of N the x of M minimising ``|C_MN Phi[x] - Psi[y]|``."""
+def pointwise_from_fmap(
+    C_MN: np.ndarray, basis_M: Basis, basis_N: Basis, search: str = "faiss", rows: np.ndarray | None = None
+) -> np.ndarray:
+    """``p2p_NM`` from ``C_MN`` alone: for each y of N the x of M minimising ``|C_MN Phi[x] - Psi[y]|``.
+
+    With ``rows`` only those vertices of N are matched (the result has one entry per row)."""
     k_N, k_M = C_MN.shape
-    return nearest_neighbors(basis_M.evecs[:, :k_M] @ C_MN.T, basis_N.evecs[:, :k_N], search)
+    queries = basis_N.evecs[:, :k_N] if rows is None else basis_N.evecs[rows, :k_N]
+    return nearest_neighbors(basis_M.evecs[:, :k_M] @ C_MN.T, queries, search)
 
 
 def pointwise_from_both(

@@ -1,11 +1,13 @@
 """Plugins found through Python entry points.
 
-Three entry-point groups, one per kind of plugin. Each entry point names a :class:`Plugin` object:
+Four entry-point groups, one per kind of plugin. Each entry point names a :class:`Plugin` object:
 
 * ``curvefm.tracers``:    ``run(mesh, start, end, params) -> path``, a vertex path (internal ids) from start
   to end whose consecutive entries share an edge.
 * ``curvefm.bases``:      ``run(mesh, k, params, progress) -> Basis``.
 * ``curvefm.converters``: ``run(problem: MapProblem, params, progress) -> PointwiseMaps``.
+* ``curvefm.methods``:    ``run(inputs: MapInputs, params, progress) -> FunctionalMaps``, functional maps
+  from curves or landmarks (``curvefm reproduce`` compares them).
 
 Our own built-ins are registered in ``pyproject.toml`` exactly as a third-party package registers its own.
 """
@@ -21,7 +23,12 @@ from pydantic import BaseModel, ValidationError
 
 from curvefm.errors import CurvefmError
 
-GROUPS = {"tracer": "curvefm.tracers", "basis": "curvefm.bases", "converter": "curvefm.converters"}
+GROUPS = {
+    "tracer": "curvefm.tracers",
+    "basis": "curvefm.bases",
+    "converter": "curvefm.converters",
+    "method": "curvefm.methods",
+}
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,74 @@
+"""Pointwise descriptors for the descriptor-based baselines (OBCS12, NO17) and their operators.
+
+* Wave kernel signature (Aubry, Schlickewei, Cremers 2011): the probability that a quantum particle with
+  energy distribution centred at log-energy ``e`` is measured at x,
+  ``WKS(x, e) = sum_k phi_k(x)^2 g_e(lam_k) / sum_k g_e(lam_k)``, ``g_e(lam) = exp(-(e - log lam)^2 / 2 sigma^2)``.
+* Wave kernel map at a landmark p: the same filter applied to ``phi_k(p) phi_k(x)``; corresponding landmarks
+  on two shapes give corresponding functions, which is how OBCS12 uses landmarks.
+* Curve functions (the paper's "baseline test"): -1 off a curve, its normalised arc length on it.
+* Multiplication operators ``Phi^T A diag(f) Phi`` (Nogneng and Ovsjanikov 2017): a functional map that
+  preserves a descriptor f should commute with multiplication by f.
+
+Energies are taken on the log-eigenvalues of the unit-area basis, skipping the constant eigenfunction.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from curvefm.basis import Basis
+from curvefm.errors import CurvefmError
+
+
+def _energy_filters(evals: np.ndarray, n_energies: int, sigma: float) -> np.ndarray:
+    """(n_energies, k-1) normalised log-normal filters over the nonzero eigenvalues; ``sigma`` is the filter
+    width as a fraction of the log-eigenvalue range (Aubry et al.'s variance 6 over 100 energies is 0.06)."""
+    if n_energies < 1:
+        raise CurvefmError(f"n_energies must be at least 1, got {n_energies}")
+    if len(evals) < 3:
+        raise CurvefmError(f"wave kernels need at least 3 basis functions, got {len(evals)}")
+    log_lam = np.log(np.maximum(evals[1:], 1e-12))
+    energies = np.linspace(log_lam[0], log_lam[-1], n_energies)
+    width = sigma * (log_lam[-1] - log_lam[0])
+    filters = np.exp(-((energies[:, None] - log_lam[None, :]) ** 2) / (2 * width**2))
+    return filters / filters.sum(axis=1, keepdims=True)
+
+
+def wave_kernel_signature(basis: Basis, n_energies: int = 20, sigma: float = 0.06) -> np.ndarray:
+    """WKS, (n, n_energies), at energies evenly spaced over the log-eigenvalues."""
+    filters = _energy_filters(basis.evals, n_energies, sigma)
+    return (basis.evecs[:, 1:] ** 2) @ filters.T
+
+
+def wave_kernel_maps(basis: Basis, landmarks: np.ndarray, n_energies: int = 20, sigma: float = 0.06) -> np.ndarray:
+    """Wave kernel maps at each landmark, (n, len(landmarks) * n_energies), grouped by landmark."""
+    landmarks = np.asarray(landmarks, dtype=np.int64).reshape(-1)
+    filters = _energy_filters(basis.evals, n_energies, sigma)
+    at_landmarks = basis.evecs[landmarks, 1:]  # (L, k-1)
+    weights = at_landmarks[:, None, :] * filters[None, :, :]  # (L, E, k-1)
+    return basis.evecs[:, 1:] @ weights.reshape(-1, weights.shape[-1]).T
+
+
+def curve_function(vertices: np.ndarray, path: np.ndarray) -> np.ndarray:
+    """-1 off the curve; on its vertices the arc length from its start divided by its length (0..1)."""
+    path = np.asarray(path, dtype=np.int64)
+    lengths = np.linalg.norm(np.diff(vertices[path], axis=0), axis=1)
+    arc = np.r_[0.0, np.cumsum(lengths)]
+    if arc[-1] <= 0:
+        raise CurvefmError("a curve of zero length cannot be turned into a function")
+    f = -np.ones(len(vertices))
+    f[path] = arc / arc[-1]
+    return f
+
+
+def normalised(basis: Basis, functions: np.ndarray) -> np.ndarray:
+    """Each column divided by its L2 norm under the mass (so descriptors weigh alike)."""
+    norms = np.sqrt(basis.mass @ functions**2)
+    return functions / np.maximum(norms, 1e-300)
+
+
+def multiplication_operators(basis: Basis, functions: np.ndarray, k: int) -> np.ndarray:
+    """``Phi^T A diag(f) Phi`` for each column f of ``functions``: (d, k, k)."""
+    Phi = basis.evecs[:, :k]
+    weighted = basis.mass[:, None] * Phi
+    return np.stack([(weighted * f[:, None]).T @ Phi for f in functions.T])

@@ -1,0 +1,159 @@
+"""Method plugins ``curves``, ``obcs12`` and ``no17``: functional maps from curves or landmarks.
+
+See :mod:`curvefm.methods` for the energies. The descriptor baselines follow the usual pyFM-style setup:
+wave kernel signatures and wave kernel maps at the landmarks from the first ``spectrum`` eigenpairs, a map
+of size ``k`` (smaller than ours: descriptor methods degrade in large bases, see docs/results.md).
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from curvefm.basis import Basis
+from curvefm.curves import DEFAULT_SAMPLES
+from curvefm.descriptors import (
+    curve_function,
+    multiplication_operators,
+    normalised,
+    wave_kernel_maps,
+    wave_kernel_signature,
+)
+from curvefm.errors import CurvefmError
+from curvefm.methods import (
+    DescriptorEnergy,
+    FunctionalMaps,
+    MapInputs,
+    check_method_k,
+    descriptor_least_squares,
+    lbfgs,
+    normalised_eigenvalues,
+)
+from curvefm.progress import Progress, no_progress
+from curvefm.registry import Plugin
+from curvefm.solver import DEFAULT_ALPHA, CurveMapSolver
+
+
+class CurvesParams(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    alpha: float = Field(DEFAULT_ALPHA, ge=0, description="weight of Laplacian commutativity")
+    samples: int = Field(DEFAULT_SAMPLES, ge=2, le=10_000, description="uniform samples per curve")
+
+
+def run_curves(inputs: MapInputs, params: CurvesParams, progress: Progress = no_progress) -> FunctionalMaps:
+    if not inputs.curves:
+        raise CurvefmError("the 'curves' method needs at least one pair of curves")
+    k = min(inputs.basis_M.k, inputs.basis_N.k)
+    solver = CurveMapSolver(
+        inputs.mesh_M.vertices, inputs.basis_M, inputs.mesh_N.vertices, inputs.basis_N,
+        k=k, alpha=params.alpha, samples=params.samples,
+    )  # fmt: skip
+    solver.add_curves([(path_M, path_N, 1.0) for path_M, path_N in inputs.curves])
+    progress(1.0, "curve-constrained maps solved")
+    return FunctionalMaps(solver.C_MN, solver.C_NM)
+
+
+class DescriptorParams(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    k: int = Field(50, ge=3, le=1000, description="size of the functional map")
+    spectrum: int = Field(120, ge=3, le=1000, description="eigenpairs used to build the wave kernels")
+    energies: int = Field(20, ge=1, le=500, description="log-energies per wave kernel descriptor")
+    sigma: float = Field(0.06, gt=0, description="filter width as a fraction of the log-eigenvalue range")
+    mu: float = Field(1.0, ge=0, description="weight of Laplacian commutativity")
+
+
+class NO17Params(DescriptorParams):
+    inputs: Literal["landmarks", "curves"] = Field(
+        "landmarks",
+        description="'landmarks': wave kernels at the landmarks; 'curves': each curve as a function "
+        "(-1 off the curve, normalised arc length on it), the paper's baseline test",
+    )
+    w_comm: float = Field(0.1, ge=0, description="weight of descriptor commutativity")
+    max_operators: int = Field(40, ge=1, le=1000, description="descriptors whose operators must commute")
+    max_iter: int = Field(300, ge=1, le=100_000, description="L-BFGS iterations")
+
+
+def landmark_descriptors(inputs: MapInputs, params: DescriptorParams) -> tuple[np.ndarray, np.ndarray]:
+    """Corresponding descriptor columns on M and N: WKS and the wave kernel maps at the landmarks."""
+    if len(inputs.landmarks) == 0:
+        raise CurvefmError("the descriptor methods need at least one landmark (or one curve)")
+    out = []
+    for side, basis in ((0, inputs.basis_M), (1, inputs.basis_N)):
+        spectral = _spectrum(basis, params.spectrum)
+        wks = wave_kernel_signature(spectral, params.energies, params.sigma)
+        wkm = wave_kernel_maps(spectral, inputs.landmarks[:, side], params.energies, params.sigma)
+        out.append(normalised(basis, np.hstack([wks, wkm])))
+    return out[0], out[1]
+
+
+def curve_descriptors(inputs: MapInputs) -> tuple[np.ndarray, np.ndarray]:
+    if not inputs.curves:
+        raise CurvefmError("NO17 with inputs='curves' needs at least one pair of curves")
+    F_M = np.column_stack([curve_function(inputs.mesh_M.vertices, pm) for pm, _ in inputs.curves])
+    F_N = np.column_stack([curve_function(inputs.mesh_N.vertices, pn) for _, pn in inputs.curves])
+    return normalised(inputs.basis_M, F_M), normalised(inputs.basis_N, F_N)
+
+
+def _spectrum(basis: Basis, size: int) -> Basis:
+    if size > basis.k:
+        raise CurvefmError(f"spectrum = {size} eigenpairs asked for, but the basis has only {basis.k}")
+    return basis.truncated(size)
+
+
+def _coefficients(basis: Basis, functions: np.ndarray, k: int) -> np.ndarray:
+    return basis.truncated(k).project(functions)
+
+
+def run_obcs12(inputs: MapInputs, params: DescriptorParams, progress: Progress = no_progress) -> FunctionalMaps:
+    k = check_method_k(params.k, inputs.basis_M, inputs.basis_N)
+    f_M, f_N = landmark_descriptors(inputs, params)
+    A, B = _coefficients(inputs.basis_M, f_M, k), _coefficients(inputs.basis_N, f_N, k)
+    lam_M, lam_N = normalised_eigenvalues(inputs.basis_M, inputs.basis_N, k)
+    C_MN = descriptor_least_squares(A, B, lam_M, lam_N, params.mu)
+    C_NM = descriptor_least_squares(B, A, lam_N, lam_M, params.mu)
+    progress(1.0, "descriptor least squares solved")
+    return FunctionalMaps(C_MN, C_NM)
+
+
+def run_no17(inputs: MapInputs, params: NO17Params, progress: Progress = no_progress) -> FunctionalMaps:
+    k = check_method_k(params.k, inputs.basis_M, inputs.basis_N)
+    f_M, f_N = curve_descriptors(inputs) if params.inputs == "curves" else landmark_descriptors(inputs, params)
+    A, B = _coefficients(inputs.basis_M, f_M, k), _coefficients(inputs.basis_N, f_N, k)
+    chosen = np.unique(np.linspace(0, f_M.shape[1] - 1, min(params.max_operators, f_M.shape[1])).astype(int))
+    X = multiplication_operators(inputs.basis_M, f_M[:, chosen], k)
+    Y = multiplication_operators(inputs.basis_N, f_N[:, chosen], k)
+    lam_M, lam_N = normalised_eigenvalues(inputs.basis_M, inputs.basis_N, k)
+    maps = []
+    for step, (F_from, F_to, l_from, l_to, X_from, X_to) in enumerate(
+        ((A, B, lam_M, lam_N, X, Y), (B, A, lam_N, lam_M, Y, X))
+    ):
+        progress(0.5 * step, "quasi-Newton (L-BFGS) on descriptor preservation and commutativity")
+        energy = DescriptorEnergy(F_from, F_to, l_from, l_to, X_from, X_to, params.mu, 1.0, params.w_comm)
+        start = descriptor_least_squares(F_from, F_to, l_from, l_to, params.mu)
+        maps.append(lbfgs(energy, start, params.max_iter)[0])
+    progress(1.0, "done")
+    return FunctionalMaps(maps[0], maps[1])
+
+
+CURVES = Plugin(
+    name="curves",
+    description="Curve-constrained functional maps (Gehre et al. 2018): exact per-column solve",
+    Params=CurvesParams,
+    run=run_curves,
+)
+OBCS12 = Plugin(
+    name="obcs12",
+    description="Descriptor preservation (WKS + wave kernel maps at landmarks) and Laplacian commutativity, "
+    "least squares (Ovsjanikov et al. 2012)",
+    Params=DescriptorParams,
+    run=run_obcs12,
+)
+NO17 = Plugin(
+    name="no17",
+    description="OBCS12 plus descriptor commutativity, L-BFGS (Nogneng and Ovsjanikov 2017); inputs='curves' "
+    "gives it the curves as functions",
+    Params=NO17Params,
+    run=run_no17,
+)
