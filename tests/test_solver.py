@@ -8,7 +8,7 @@ from curvefm.basis import Basis
 from curvefm.errors import CurvefmError
 from curvefm.paths import shortest_path
 from curvefm.registry import get
-from curvefm.solver import CurveMapSolver, conjugate_gradient_solve
+from curvefm.solver import CurveMapSolver, conjugate_gradient_solve, quasi_newton_solve
 
 K = 30
 
@@ -64,6 +64,15 @@ def test_paper_conjugate_gradients_reach_the_same_minimiser(pair):
         G_N, B, solver.lam_N, solver.lam_M, solver.alpha, C0=solver.C_MN, tol=1e-8
     )
     assert warm_iterations < iterations
+
+
+def test_quasi_newton_reaches_the_same_minimiser(pair):
+    solver, _, _ = solver_with(pair, alpha=10.0)
+    G_M, G_N, B = solver.normal_equations()
+    C_qn, iterations = quasi_newton_solve(G_N, B, solver.lam_N, solver.lam_M, solver.alpha, tol=1e-10)
+    assert iterations > 0
+    np.testing.assert_allclose(C_qn, solver.C_MN, atol=1e-5 * np.abs(solver.C_MN).max())
+    assert solver.energy(C_qn) == pytest.approx(solver.energy(solver.C_MN), rel=1e-8, abs=1e-12)
 
 
 def test_both_directions_are_solved(pair):

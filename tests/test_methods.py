@@ -1,0 +1,162 @@
+"""Map methods and descriptors: the OBCS12 / NO17 baselines, wave kernels, curves from ground truth."""
+
+import numpy as np
+import pytest
+from shapes import ellipsoid
+
+from curvefm import registry
+from curvefm.basis import Basis
+from curvefm.descriptors import curve_function, multiplication_operators, wave_kernel_maps, wave_kernel_signature
+from curvefm.errors import CurvefmError
+from curvefm.evaluation import ground_truth_for
+from curvefm.experiment import CurvePool
+from curvefm.mesh import build_mesh, load_mesh
+from curvefm.methods import DescriptorEnergy, MapInputs, curve_endpoints, descriptor_least_squares, lbfgs
+from curvefm.paths import check_edge_path, shortest_path
+from curvefm.pointwise import pointwise_from_fmap
+
+
+def basis_of(mesh, k=40) -> Basis:
+    plugin = registry.get("basis", "laplace-beltrami")
+    return plugin.run(mesh, k, plugin.parse_params({}))
+
+
+@pytest.fixture(scope="module")
+def pair():
+    M = ellipsoid()
+    N = ellipsoid(radii=(1.1, 0.6, 0.55))  # same connectivity: vertex i <-> vertex i
+    return M, basis_of(M), N, basis_of(N)
+
+
+@pytest.fixture(scope="module")
+def inputs(pair):
+    M, bM, N, bN = pair
+    curves = [(p, p) for p in (shortest_path(M.edge_graph, a, b) for a, b in ((0, 600), (100, 900), (250, 1100)))]
+    return MapInputs.from_curves(M, N, bM, bN, curves)
+
+
+def random_problem(k_from=12, k_to=10, d=30, seed=0):
+    rng = np.random.default_rng(seed)
+    F_from, F_to = rng.standard_normal((k_from, d)), rng.standard_normal((k_to, d))
+    return F_from, F_to, np.sort(rng.random(k_from)), np.sort(rng.random(k_to))
+
+
+def test_descriptor_least_squares_is_the_dense_least_squares_solution():
+    F_from, F_to, lam_from, lam_to = random_problem()
+    mu, d = 0.3, F_from.shape[1]
+    C = descriptor_least_squares(F_from, F_to, lam_from, lam_to, mu)
+    # vec(C F) = (F^T (x) I) vec(C) (columns stacked); commutativity: sqrt(mu) |lam_to_i - lam_from_j| C_ij
+    A_descr = np.kron(F_from.T, np.eye(len(lam_to))) / np.sqrt(d)
+    A_comm = np.diag(np.sqrt(mu) * np.abs(np.subtract.outer(lam_to, lam_from)).T.ravel())
+    dense = np.linalg.lstsq(np.vstack([A_descr, A_comm]), np.r_[F_to.T.ravel() / np.sqrt(d), np.zeros(C.size)])[0]
+    np.testing.assert_allclose(C, dense.reshape(C.shape, order="F"), atol=1e-9)
+
+
+def test_descriptor_energy_gradient_matches_finite_differences():
+    F_from, F_to, lam_from, lam_to = random_problem()
+    rng = np.random.default_rng(1)
+    X = rng.standard_normal((4, 12, 12))
+    Y = rng.standard_normal((4, 10, 10))
+    energy = DescriptorEnergy(
+        F_from, F_to, lam_from, lam_to, X + X.transpose(0, 2, 1), Y + Y.transpose(0, 2, 1), 0.2, 1.0, 0.5
+    )
+    x = rng.standard_normal(120)
+    value, grad = energy(x)
+    step = 1e-6
+    for i in rng.choice(120, 10, replace=False):
+        e = np.zeros(120)
+        e[i] = step
+        numeric = (energy(x + e)[0] - energy(x - e)[0]) / (2 * step)
+        assert numeric == pytest.approx(grad[i], rel=1e-5, abs=1e-6)
+
+
+def test_lbfgs_without_commutativity_reaches_the_least_squares_map():
+    F_from, F_to, lam_from, lam_to = random_problem()
+    empty_from, empty_to = np.zeros((0, 12, 12)), np.zeros((0, 10, 10))
+    energy = DescriptorEnergy(F_from, F_to, lam_from, lam_to, empty_from, empty_to, 0.3, 1.0, 0.0)
+    C, iterations = lbfgs(energy, np.zeros((10, 12)), 5000)
+    assert iterations > 0
+    np.testing.assert_allclose(C, descriptor_least_squares(F_from, F_to, lam_from, lam_to, 0.3), atol=1e-6)
+
+
+def test_wave_kernels_are_intrinsic_and_symmetric(pair):
+    M, bM, _, _ = pair
+    moved = build_mesh(3.0 * M.vertices @ np.linalg.qr(np.random.default_rng(2).standard_normal((3, 3)))[0], M.faces)
+    wks, wks_moved = wave_kernel_signature(bM), wave_kernel_signature(basis_of(moved))
+    assert wks.shape == (M.n_vertices, 20)
+    np.testing.assert_allclose(wks_moved, wks, atol=1e-6 * np.abs(wks).max())  # scale and rotation invariant
+    wkm = wave_kernel_maps(bM, [5, 700], n_energies=8).reshape(M.n_vertices, 2, 8)
+    np.testing.assert_allclose(wkm[700, 0], wkm[5, 1], atol=1e-12)  # k_e(p, q) = k_e(q, p)
+
+
+def test_curve_function_and_multiplication_operators(pair):
+    M, bM, _, _ = pair
+    path = shortest_path(M.edge_graph, 0, 600)
+    f = curve_function(M.vertices, path)
+    assert f[path[0]] == 0 and f[path[-1]] == 1 and np.all(np.diff(f[path]) > 0)
+    assert np.all(f[np.setdiff1d(np.arange(M.n_vertices), path)] == -1)
+    ops = multiplication_operators(bM, np.c_[np.ones(M.n_vertices), f], 10)
+    np.testing.assert_allclose(ops[0], np.eye(10), atol=1e-10)  # multiplying by 1 is the identity
+    np.testing.assert_allclose(ops[1], ops[1].T, atol=1e-12)
+    with pytest.raises(CurvefmError, match="zero length"):
+        curve_function(M.vertices, np.array([3, 3]))
+
+
+@pytest.mark.parametrize("name, params", [("curves", {}), ("obcs12", {"k": 20, "spectrum": 40}),
+                                          ("no17", {"k": 20, "spectrum": 40}),
+                                          ("no17", {"k": 20, "spectrum": 40, "inputs": "curves"})])  # fmt: skip
+def test_every_method_maps_a_shape_to_its_stretched_copy(inputs, name, params):
+    plugin = registry.get("method", name)
+    maps = plugin.run(inputs, plugin.parse_params(params))
+    k = params.get("k", 40)
+    assert maps.C_MN.shape == maps.C_NM.shape == (k, k)
+    # same connectivity, vertex i <-> vertex i: the pointwise map must beat a random one by far
+    N = inputs.mesh_N
+    p2p_MN = pointwise_from_fmap(maps.C_NM, inputs.basis_N, inputs.basis_M)
+    error = np.linalg.norm(N.vertices[p2p_MN] - N.vertices, axis=1).mean()
+    shuffled = np.linalg.norm(N.vertices[np.random.default_rng(0).permutation(N.n_vertices)] - N.vertices, axis=1)
+    assert error < 0.2 * shuffled.mean()  # measured: curves 0.015, NO17 0.02-0.07, OBCS12 0.12 of it
+
+
+def test_methods_report_bad_input(inputs):
+    with pytest.raises(CurvefmError, match="unknown method 'magic'; installed methods: curves, no17, obcs12"):
+        registry.get("method", "magic")
+    with pytest.raises(CurvefmError, match="bad parameters for 'no17': inputs"):
+        registry.get("method", "no17").parse_params({"inputs": "pictures"})
+    plugin = registry.get("method", "obcs12")
+    with pytest.raises(CurvefmError, match="k = 300 but the bases have only 40"):
+        plugin.run(inputs, plugin.parse_params({"k": 300}))
+    no_curves = MapInputs(inputs.mesh_M, inputs.mesh_N, inputs.basis_M, inputs.basis_N, (), np.zeros((0, 2), int))
+    with pytest.raises(CurvefmError, match="at least one landmark"):
+        plugin.run(no_curves, plugin.parse_params({"k": 20, "spectrum": 40}))
+
+
+def test_curve_endpoints_are_distinct_landmark_pairs():
+    curves = [(np.array([1, 2, 3]), np.array([7, 8])), (np.array([3, 4]), np.array([8, 9]))]
+    assert curve_endpoints(curves).tolist() == [[1, 7], [3, 8], [4, 9]]
+
+
+def test_curve_pool_draws_seeded_traced_and_exact_curves(shared_data):
+    source, target = shared_data / "faust_5k_bcicp/tr_reg_000.off", shared_data / "faust_5k_bcicp/tr_reg_011.off"
+    M, N = load_mesh(source), load_mesh(target)
+    truth = ground_truth_for(source, target, M, N)
+    pool = CurvePool(M, N, truth, size=20)
+    assert pool.endpoints(5, seed=3) == pool.endpoints(5, seed=3) != pool.endpoints(5, seed=4)
+    assert len(set(pool.endpoints(30, seed=0))) == 30
+    partner = dict(zip(truth.ids_X.tolist(), truth.ids_Y.tolist(), strict=True))
+    for exact in (False, True):
+        for path_M, path_N in pool.curves(4, seed=0, exact=exact):
+            check_edge_path(M.edge_graph, path_M)
+            check_edge_path(N.edge_graph, path_N)  # remeshed target: carried paths are closed into edge paths
+            assert (path_N[0], path_N[-1]) == (partner[int(path_M[0])], partner[int(path_M[-1])])
+    with pytest.raises(CurvefmError, match="cannot give 1000 distinct curves"):
+        pool.endpoints(1000, seed=0)
+
+
+def test_exact_curves_need_dense_ground_truth(shared_data):
+    source, target = shared_data / "tosca/horse0.off", shared_data / "tosca/wolf0.off"
+    M, N = load_mesh(source), load_mesh(target)
+    pool = CurvePool(M, N, ground_truth_for(source, target, M, N))
+    assert len(pool.candidates) == 21  # the shared animal landmarks
+    with pytest.raises(CurvefmError, match="exact curves need a dense ground truth"):
+        pool.curves(2, seed=0, exact=True)
