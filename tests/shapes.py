@@ -24,3 +24,18 @@ def ellipsoid(n_lat=24, n_lon=48, radii=(1.0, 0.7, 0.5), scale=1.0):
         last = (n_lat - 1) * n_lon
         faces.append([south, last + (j + 1) % n_lon, last + j])
     return build_mesh(vertices, np.array(faces), name="ellipsoid")
+
+
+def basis_of(mesh, k=40):
+    """The built-in ``laplace-beltrami`` basis of a small test mesh."""
+    from curvefm import registry
+
+    plugin = registry.get("basis", "laplace-beltrami")
+    return plugin.run(mesh, k, plugin.parse_params({}))
+
+
+def stretched_ellipsoid_pair(k=40):
+    """``(M, basis_M, N, basis_N)``: an ellipsoid and a stretched copy, vertex i <-> vertex i."""
+    M = ellipsoid()
+    N = ellipsoid(radii=(1.1, 0.6, 0.55))
+    return M, basis_of(M, k), N, basis_of(N, k)

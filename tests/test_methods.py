@@ -2,10 +2,9 @@
 
 import numpy as np
 import pytest
-from shapes import ellipsoid
+from shapes import basis_of, stretched_ellipsoid_pair
 
 from curvefm import registry
-from curvefm.basis import Basis
 from curvefm.descriptors import curve_function, multiplication_operators, wave_kernel_maps, wave_kernel_signature
 from curvefm.errors import CurvefmError
 from curvefm.evaluation import ground_truth_for
@@ -16,16 +15,9 @@ from curvefm.paths import check_edge_path, shortest_path
 from curvefm.pointwise import pointwise_from_fmap
 
 
-def basis_of(mesh, k=40) -> Basis:
-    plugin = registry.get("basis", "laplace-beltrami")
-    return plugin.run(mesh, k, plugin.parse_params({}))
-
-
 @pytest.fixture(scope="module")
 def pair():
-    M = ellipsoid()
-    N = ellipsoid(radii=(1.1, 0.6, 0.55))  # same connectivity: vertex i <-> vertex i
-    return M, basis_of(M), N, basis_of(N)
+    return stretched_ellipsoid_pair()  # same connectivity: vertex i <-> vertex i
 
 
 @pytest.fixture(scope="module")

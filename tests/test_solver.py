@@ -2,27 +2,18 @@
 
 import numpy as np
 import pytest
-from shapes import ellipsoid
+from shapes import basis_of, ellipsoid, stretched_ellipsoid_pair
 
-from curvefm.basis import Basis
 from curvefm.errors import CurvefmError
 from curvefm.paths import shortest_path
-from curvefm.registry import get
 from curvefm.solver import CurveMapSolver, conjugate_gradient_solve, quasi_newton_solve
 
 K = 30
 
 
-def basis_of(mesh, k=K + 10) -> Basis:
-    plugin = get("basis", "laplace-beltrami")
-    return plugin.run(mesh, k, plugin.parse_params({}))
-
-
 @pytest.fixture(scope="module")
 def pair():
-    M = ellipsoid()
-    N = ellipsoid(radii=(1.1, 0.6, 0.55))  # same connectivity: vertex i <-> vertex i
-    return M, basis_of(M), N, basis_of(N)
+    return stretched_ellipsoid_pair()  # same connectivity: vertex i <-> vertex i
 
 
 def curves_on(mesh, pairs):
