@@ -17,7 +17,7 @@ from curvefm.paths import shortest_path
 from curvefm.solver import CurveMapSolver, conjugate_gradient_solve
 from curvefm.transfer import FunctionTransfer
 
-REPEAT = 15
+REPEAT = 31
 
 
 def curve_paths(mesh, count):
