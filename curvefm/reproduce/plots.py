@@ -45,7 +45,8 @@ def plot_accuracy(dataset: str, title: str, summary: dict, path: Path) -> Path:
             if str(count) in summary.get(key, {}):
                 label = f"{count} curve{'s' if count > 1 else ''}" + (", exact" if key == "curves-exact" else "")
                 ax.plot(CURVE_RADII, summary[key][str(count)]["curve"], STYLES[key], color=colour, label=label)
-    _cumulative_axes(ax, "Curves (ours): traced (solid) vs exact (dashed)")
+    has_exact = "curves-exact" in summary
+    _cumulative_axes(ax, "Curves (ours): traced (solid) vs exact (dashed)" if has_exact else "Curves (ours), traced")
     ax = axes[0, 1]
     for key, by_count in summary.items():
         if str(shown) in by_count:
