@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-SLOW_K = 150  # a FAUST basis this large takes seconds: long enough to kill its worker mid-job
+SLOW_K = 500  # a FAUST basis this large takes 5-15 s (k = 150 took 0.6 s on a quiet machine): time to kill its worker
 
 
 @pytest.fixture
