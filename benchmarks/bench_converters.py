@@ -20,10 +20,12 @@ import numpy as np
 from common import bench_store, machine, shared_data
 
 from curvefm import registry
+from curvefm.curves import DEFAULT_SAMPLES
 from curvefm.evaluation import evaluate_map, ground_truth_for
 from curvefm.experiment import ground_truth_curves, score
 from curvefm.matching import CurveSpec, MatchResult, match
 from curvefm.mesh import load_mesh
+from curvefm.solver import DEFAULT_ALPHA, DEFAULT_K
 from curvefm.store import Store
 from curvefm.workers.queue import EmbeddedQueue
 from curvefm.workers.records import CurveRecord, SessionRecord
@@ -76,15 +78,15 @@ def run_converter(result: MatchResult, truth, name: str, params: dict, repeat: i
 
 def session_record(store: Store, result: MatchResult, curves) -> dict:
     """The refinement job's input: a session snapshot with the curves as explicit file-id paths."""
-    mesh_M, mesh_N, solver = result.mesh_M, result.mesh_N, result.solver
+    mesh_M, mesh_N = result.mesh_M, result.mesh_N
     records = []
     for i, (path_M, path_N) in enumerate(curves):
         ids_M, ids_N = mesh_M.file_ids[path_M].tolist(), mesh_N.file_ids[path_N].tolist()
         spec = CurveSpec(source=ids_M, target=ids_N, explicit=True)
         records.append(CurveRecord(id=f"c{i}", spec=spec, tracer="geodesic", path_source=ids_M, path_target=ids_N))
     return SessionRecord(
-        id="bench", source=store.put_mesh(mesh_M), target=store.put_mesh(mesh_N), k=solver.k, alpha=solver.alpha,
-        samples=solver.samples, tracer="geodesic", basis_plugin="laplace-beltrami",
+        id="bench", source=store.put_mesh(mesh_M), target=store.put_mesh(mesh_N), k=DEFAULT_K, alpha=DEFAULT_ALPHA,
+        samples=DEFAULT_SAMPLES, tracer="geodesic", basis_plugin="laplace-beltrami",
         basis_params={"laplacian": "cotangent"}, curves=records, created_at=time.time(), updated_at=time.time(),
     ).model_dump()  # fmt: skip
 

@@ -38,12 +38,23 @@ def cmd_match(args) -> int:
     curves = read_curves(args.curves)
     result = match(
         mesh_M, mesh_N, curves, k=args.k, alpha=args.alpha, tracer=args.tracer,
-        converter=args.refine, converter_params=json.loads(args.refine_params),
+        converter=args.refine, converter_params=_json_option(args.refine_params, "--refine-params"),
+        method=args.method, method_params=_json_option(args.method_params, "--method-params"),
         store=Store(args.data) if args.data else None, progress=progress_bar("match"),
     )
     for path in write_outputs(result, args.out):
         print(path)
     return 0
+
+
+def _json_option(text: str, option: str) -> dict:
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise CurvefmError(f"{option} must be a JSON object: {exc}") from None
+    if not isinstance(value, dict):
+        raise CurvefmError(f"{option} must be a JSON object, got {text!r}")
+    return value
 
 
 def cmd_evaluate(args) -> int:
@@ -130,6 +141,8 @@ def parser() -> argparse.ArgumentParser:
     m.add_argument("--tracer", default="geodesic", help="default curve tracer plugin (default %(default)s)")
     m.add_argument("--refine", default="nearest-neighbor", help="converter plugin for the pointwise maps")
     m.add_argument("--refine-params", default="{}", help="converter parameters as JSON")
+    m.add_argument("--method", default="curves", help="map method plugin: curves (ours), obcs12, no17, ...")
+    m.add_argument("--method-params", default="{}", help="map method parameters as JSON")
     m.set_defaults(run=cmd_match)
 
     e = sub.add_parser("evaluate", parents=[data], help="score a pair with known ground truth (../shared/data)")

@@ -14,9 +14,10 @@ from curvefm.basis import Basis
 from curvefm.curves import DEFAULT_SAMPLES, trace_curve
 from curvefm.errors import CurvefmError
 from curvefm.mesh import Mesh, save_mesh
+from curvefm.methods import MapInputs
 from curvefm.pointwise import MapProblem, PointwiseMaps
 from curvefm.progress import Progress, no_progress, scaled
-from curvefm.solver import DEFAULT_ALPHA, DEFAULT_K, CurveMapSolver
+from curvefm.solver import DEFAULT_ALPHA, DEFAULT_K
 from curvefm.store import Store
 from curvefm.texture import texture_coordinates
 from curvefm.transfer import transfer
@@ -78,7 +79,9 @@ class MatchResult:
     mesh_N: Mesh
     basis_M: Basis
     basis_N: Basis
-    solver: CurveMapSolver
+    C_MN: np.ndarray
+    C_NM: np.ndarray
+    method: str = "curves"
     maps: PointwiseMaps | None = None
     paths: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
 
@@ -87,8 +90,8 @@ class MatchResult:
         return MapProblem(
             self.mesh_M.vertices, self.mesh_M.faces, self.basis_M,
             self.mesh_N.vertices, self.mesh_N.faces, self.basis_N,
-            self.solver.C_MN, self.solver.C_NM,
-        )
+            self.C_MN, self.C_NM,
+        )  # fmt: skip
 
 
 def match(
@@ -103,12 +106,21 @@ def match(
     store: Store | None = None,
     samples: int = DEFAULT_SAMPLES,
     progress: Progress = no_progress,
+    method: str = "curves",
+    method_params: dict | None = None,
 ) -> MatchResult:
-    """Bases (from the store or computed), curves traced, both functional maps solved, pointwise maps.
+    """Bases (from the store or computed), curves traced, both functional maps, pointwise maps.
 
     ``curves`` are :class:`CurveSpec` (file ids, traced here) or ready ``(path_M, path_N)`` internal paths.
+    ``method`` is a map-method plugin (``curves``, ours, by default; ``obcs12`` and ``no17`` use the curves'
+    endpoints as landmarks); ``alpha`` and ``samples`` are defaults for the methods that take them.
     """
     store = store or Store()
+    compute = registry.get("method", method)
+    shared = {"alpha": alpha, "samples": samples}
+    compute_params = compute.parse_params(
+        {name: value for name, value in shared.items() if name in compute.Params.model_fields} | (method_params or {})
+    )
     convert = registry.get("converter", converter)
     parsed = convert.parse_params(converter_params)
     basis_k = max(k, converter_basis_size(parsed))  # refiners such as ZoomOut work in larger bases
@@ -117,10 +129,10 @@ def match(
     paths = [trace_pair(mesh_M, mesh_N, c, tracer) if isinstance(c, CurveSpec) else c for c in curves]
     if not paths:
         raise CurvefmError("at least one pair of curves is needed to compute a map")
-    solver = CurveMapSolver(mesh_M.vertices, basis_M, mesh_N.vertices, basis_N, k=k, alpha=alpha, samples=samples)
     weights = [c.weight if isinstance(c, CurveSpec) else 1.0 for c in curves]
-    solver.add_curves([(pm, pn, w) for (pm, pn), w in zip(paths, weights, strict=True)])
-    result = MatchResult(mesh_M, mesh_N, basis_M, basis_N, solver, paths=paths)
+    inputs = MapInputs.from_curves(mesh_M, mesh_N, basis_M.truncated(k), basis_N.truncated(k), paths, weights)
+    fmaps = compute.run(inputs, compute_params)
+    result = MatchResult(mesh_M, mesh_N, basis_M, basis_N, fmaps.C_MN, fmaps.C_NM, method, paths=paths)
     result.maps = convert.run(result.problem(), parsed, scaled(progress, 0.8, 1.0))
     return result
 
@@ -131,8 +143,8 @@ def write_outputs(result: MatchResult, out_dir: str | Path) -> list[Path]:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     mesh_M, mesh_N, maps = result.mesh_M, result.mesh_N, result.maps
-    np.save(out / "C_source_to_target.npy", result.solver.C_MN)
-    np.save(out / "C_target_to_source.npy", result.solver.C_NM)
+    np.save(out / "C_source_to_target.npy", result.C_MN)
+    np.save(out / "C_target_to_source.npy", result.C_NM)
     files = [out / "C_source_to_target.npy", out / "C_target_to_source.npy"]
     for name, p2p, image, domain in (
         ("map_target_to_source.txt", maps.p2p_NM, mesh_M, mesh_N),
@@ -140,7 +152,7 @@ def write_outputs(result: MatchResult, out_dir: str | Path) -> list[Path]:
     ):
         np.savetxt(out / name, domain.per_file_vertex(image.file_ids[p2p], -1), fmt="%d")
         files.append(out / name)
-    uv_N = transfer(result.solver.C_MN, result.solver.basis_M, result.solver.basis_N, texture_coordinates(mesh_M))
+    uv_N = transfer(result.C_MN, result.basis_M, result.basis_N, texture_coordinates(mesh_M))
     save_mesh(mesh_N, out / "target_textured.obj", uv=uv_N)
     files.append(out / "target_textured.obj")
     return files

@@ -32,8 +32,9 @@ from curvefm.mesh import Mesh
 class MapInputs:
     """Both shapes with their bases, and the correspondence hints (internal vertex ids).
 
-    ``curves`` are corresponding vertex paths ``(path_M, path_N)``; ``landmarks`` (m x 2) are corresponding
-    vertices, by default the curves' endpoints (what the paper gives the descriptor baselines).
+    ``curves`` are corresponding vertex paths ``(path_M, path_N)`` with their ``weights`` (empty: all 1);
+    ``landmarks`` (m x 2) are corresponding vertices, by default the curves' endpoints (what the paper gives
+    the descriptor baselines).
     """
 
     mesh_M: Mesh
@@ -42,10 +43,11 @@ class MapInputs:
     basis_N: Basis
     curves: tuple[tuple[np.ndarray, np.ndarray], ...]
     landmarks: np.ndarray
+    weights: tuple[float, ...] = ()
 
     @classmethod
-    def from_curves(cls, mesh_M, mesh_N, basis_M, basis_N, curves) -> MapInputs:
-        return cls(mesh_M, mesh_N, basis_M, basis_N, tuple(curves), curve_endpoints(curves))
+    def from_curves(cls, mesh_M, mesh_N, basis_M, basis_N, curves, weights=()) -> MapInputs:
+        return cls(mesh_M, mesh_N, basis_M, basis_N, tuple(curves), curve_endpoints(curves), tuple(weights))
 
 
 @dataclass(frozen=True)

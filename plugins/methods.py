@@ -50,7 +50,8 @@ def run_curves(inputs: MapInputs, params: CurvesParams, progress: Progress = no_
         inputs.mesh_M.vertices, inputs.basis_M, inputs.mesh_N.vertices, inputs.basis_N,
         k=k, alpha=params.alpha, samples=params.samples,
     )  # fmt: skip
-    solver.add_curves([(path_M, path_N, 1.0) for path_M, path_N in inputs.curves])
+    weights = inputs.weights or (1.0,) * len(inputs.curves)
+    solver.add_curves([(pm, pn, w) for (pm, pn), w in zip(inputs.curves, weights, strict=True)])
     progress(1.0, "curve-constrained maps solved")
     return FunctionalMaps(solver.C_MN, solver.C_NM)
 

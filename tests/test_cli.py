@@ -50,6 +50,33 @@ def test_match_writes_maps_and_a_textured_target(pair, tmp_path):
     assert np.isfinite(textured.uv).all() and np.ptp(textured.uv[:, 1]) > 0.5
 
 
+def test_match_runs_a_baseline_method_from_the_curves_endpoints(pair, tmp_path):
+    out = tmp_path / "out"
+    run = curvefm("match", pair / "source.off", pair / "target.obj", "--curves", pair / "curves.json", "--out", out,
+                  "--k", 30, "--method", "no17", "--method-params", '{"k": 20, "spectrum": 30}', data=tmp_path / "data")
+    assert run.returncode == 0, run.stderr
+    assert np.load(out / "C_source_to_target.npy").shape == (20, 20)
+    to_source = np.loadtxt(out / "map_target_to_source.txt", dtype=int)
+    source = load_mesh(pair / "source.off")
+    assert np.median(np.linalg.norm(source.vertices[to_source] - source.vertices, axis=1)) < 0.3
+
+
+@pytest.mark.parametrize(
+    "options, message",
+    [
+        (["--method", "magic"], "unknown method 'magic'; installed methods: curves, no17, obcs12"),
+        (["--method", "obcs12", "--method-params", '{"k": 0}'], "bad parameters for 'obcs12': k"),
+        (["--method-params", "[1"], "--method-params must be a JSON object"),
+        (["--method", "obcs12", "--method-params", '{"k": 50}'], "k = 50 but the bases have only 20"),
+    ],
+)
+def test_match_reports_bad_methods_clearly(pair, tmp_path, options, message):
+    run = curvefm("match", pair / "source.off", pair / "target.obj", "--curves", pair / "curves.json", "--out",
+                  tmp_path / "out", "--k", 20, *options, data=tmp_path / "data")
+    assert run.returncode == 2, run.stderr
+    assert message in run.stderr
+
+
 @pytest.mark.parametrize(
     "curves, message",
     [

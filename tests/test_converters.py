@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from curvefm import registry
+from curvefm.curves import DEFAULT_SAMPLES
 from curvefm.embedding import closest_points
 from curvefm.errors import CurvefmError
 from curvefm.evaluation import evaluate_map, ground_truth_for
@@ -22,6 +23,7 @@ from curvefm.experiment import ground_truth_curves, score
 from curvefm.matching import CurveSpec, MatchResult, match
 from curvefm.mesh import load_mesh
 from curvefm.progress import Cancelled, no_progress
+from curvefm.solver import DEFAULT_ALPHA, DEFAULT_K
 from curvefm.store import Store
 from curvefm.workers.queue import EmbeddedQueue
 from curvefm.workers.records import CurveRecord, SessionRecord
@@ -123,10 +125,9 @@ def test_refine_job_runs_rhm_with_progress_through_the_job_api(faust, store):
         ids_M, ids_N = mesh_M.file_ids[path_M].tolist(), mesh_N.file_ids[path_N].tolist()
         spec = CurveSpec(source=ids_M, target=ids_N, explicit=True)
         curves.append(CurveRecord(id=f"c{i}", spec=spec, tracer="geodesic", path_source=ids_M, path_target=ids_N))
-    solver = faust.result.solver
     record = SessionRecord(
-        id="refinetest", source=store.put_mesh(mesh_M), target=store.put_mesh(mesh_N), k=solver.k,
-        alpha=solver.alpha, samples=solver.samples, tracer="geodesic", basis_plugin="laplace-beltrami",
+        id="refinetest", source=store.put_mesh(mesh_M), target=store.put_mesh(mesh_N), k=DEFAULT_K,
+        alpha=DEFAULT_ALPHA, samples=DEFAULT_SAMPLES, tracer="geodesic", basis_plugin="laplace-beltrami",
         basis_params={"laplacian": "cotangent"}, curves=curves, created_at=time.time(), updated_at=time.time(),
     )  # fmt: skip
     queue = EmbeddedQueue(max_workers=1)

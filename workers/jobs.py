@@ -62,7 +62,9 @@ def refine(data_dir: str, session: dict, converter: str = "nearest-neighbor", pa
             pair = dataclasses.replace(pair, **dict(zip(("basis_M", "basis_N"), larger, strict=True)))
         solver, _ = build_solver(record, pair)
         paths = [internal_paths(pair, curve) for curve in record.curves]
-        result = MatchResult(pair.mesh_M, pair.mesh_N, pair.basis_M, pair.basis_N, solver, paths=paths)
+        result = MatchResult(
+            pair.mesh_M, pair.mesh_N, pair.basis_M, pair.basis_N, solver.C_MN, solver.C_NM, paths=paths
+        )
         job.progress(0.1, f"converting with '{converter}'")
         result.maps = plugin.run(result.problem(), parsed, scaled(job.progress, 0.1, 0.9))
         job.progress(0.9, "writing results")
