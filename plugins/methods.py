@@ -63,6 +63,9 @@ class DescriptorParams(BaseModel):
     energies: int = Field(20, ge=1, le=500, description="log-energies per wave kernel descriptor")
     sigma: float = Field(0.06, gt=0, description="filter width as a fraction of the log-eigenvalue range")
     mu: float = Field(1.0, ge=0, description="weight of Laplacian commutativity")
+    landmarks: bool = Field(
+        True, description="add wave kernel maps at the landmarks; false: wave kernel signatures alone"
+    )
 
 
 class NO17Params(DescriptorParams):
@@ -77,15 +80,16 @@ class NO17Params(DescriptorParams):
 
 
 def landmark_descriptors(inputs: MapInputs, params: DescriptorParams) -> tuple[np.ndarray, np.ndarray]:
-    """Corresponding descriptor columns on M and N: WKS and the wave kernel maps at the landmarks."""
-    if len(inputs.landmarks) == 0:
-        raise CurvefmError("the descriptor methods need at least one landmark (or one curve)")
+    """Corresponding descriptor columns on M and N: WKS, and the wave kernel maps at the landmarks."""
+    if params.landmarks and len(inputs.landmarks) == 0:
+        raise CurvefmError("the descriptor methods need at least one landmark (or one curve), or landmarks=false")
     out = []
     for side, basis in ((0, inputs.basis_M), (1, inputs.basis_N)):
         spectral = _spectrum(basis, params.spectrum)
-        wks = wave_kernel_signature(spectral, params.energies, params.sigma)
-        wkm = wave_kernel_maps(spectral, inputs.landmarks[:, side], params.energies, params.sigma)
-        out.append(normalised(basis, np.hstack([wks, wkm])))
+        columns = [wave_kernel_signature(spectral, params.energies, params.sigma)]
+        if params.landmarks:
+            columns.append(wave_kernel_maps(spectral, inputs.landmarks[:, side], params.energies, params.sigma))
+        out.append(normalised(basis, np.hstack(columns)))
     return out[0], out[1]
 
 

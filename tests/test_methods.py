@@ -121,6 +121,8 @@ def test_methods_report_bad_input(inputs):
     no_curves = MapInputs(inputs.mesh_M, inputs.mesh_N, inputs.basis_M, inputs.basis_N, (), np.zeros((0, 2), int))
     with pytest.raises(CurvefmError, match="at least one landmark"):
         plugin.run(no_curves, plugin.parse_params({"k": 20, "spectrum": 40}))
+    descriptors_alone = plugin.run(no_curves, plugin.parse_params({"k": 20, "spectrum": 40, "landmarks": False}))
+    assert descriptors_alone.C_MN.shape == (20, 20)  # wave kernel signatures need no landmarks
 
 
 def test_curve_endpoints_are_distinct_landmark_pairs():

@@ -74,7 +74,7 @@ def test_plots_and_a_report_with_every_claim(run):
     report = (results / "results.md").read_text()
     assert "![faust](accuracy_faust.png)" in report and "![timing](timing.png)" in report
     claims = load(results, "results.json")["claims"]
-    assert len(claims) == 6
+    assert len(claims) == 7
     for claim in claims:
         assert claim["verdict"] in ("holds", "partly holds", "does not hold")
         assert f"| {claim['claim']} | **{claim['verdict']}** |" in report

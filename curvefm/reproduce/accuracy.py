@@ -32,6 +32,7 @@ class Variant:
 VARIANTS = (
     Variant("curves-traced", "curves", "curves (ours), traced"),
     Variant("curves-exact", "curves", "curves (ours), exact", exact=True),
+    Variant("obcs12-wks", "obcs12", "OBCS12, descriptors alone (WKS)", params={"landmarks": False}),
     Variant("obcs12", "obcs12", "OBCS12, endpoints as landmarks"),
     Variant("no17", "no17", "NO17, endpoints as landmarks"),
     Variant("no17-curves", "no17", "NO17, curves as functions", params={"inputs": "curves"}),
