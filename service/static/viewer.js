@@ -20,8 +20,8 @@ const SOFTWARE_RENDERER = (() => {
 
 // -- frames: one animation frame draws every viewport that changed -------------------------------------------
 const dirty = new Set();
-const waiters = new Map(); // viewport -> resolvers waiting for its pixels
 let frameRequested = false;
+let awaited = 0; // draws someone waits for: other viewports hold off until those pixels exist
 
 function requestFrame(viewport) {
   dirty.add(viewport);
@@ -29,36 +29,32 @@ function requestFrame(viewport) {
 }
 
 function scheduleFrame() {
-  if (frameRequested || dirty.size === 0) return;
+  if (frameRequested || awaited > 0 || dirty.size === 0) return;
   frameRequested = true;
   requestAnimationFrame(drawFrame);
 }
 
-/** Draw the viewports that changed. When someone waits for a viewport, this frame draws only the awaited
- * ones, and the rest follow once their pixels exist: the renderer works through them first. */
 function drawFrame() {
   frameRequested = false;
-  const awaited = [...dirty].filter((viewport) => waiters.has(viewport));
-  for (const viewport of awaited.length ? awaited : [...dirty]) {
-    dirty.delete(viewport);
-    viewport.draw();
-  }
-  const done = awaited.map(async (viewport) => {
-    const resolvers = waiters.get(viewport);
-    waiters.delete(viewport);
-    const time = await viewport.pixelsDone();
-    for (const resolve of resolvers) resolve(time);
-  });
-  Promise.all(done).then(scheduleFrame);
+  if (awaited > 0) return; // drawn() schedules the frame again once its pixels exist
+  for (const viewport of dirty) viewport.draw();
+  dirty.clear();
 }
 
-/** Draw ``viewport`` in the next animation frame; resolves with performance.now() once its pixels exist
- * (not merely once the commands were issued: the renderer may run in another process, or on the CPU). */
-export function drawn(viewport) {
-  return new Promise((resolve) => {
-    waiters.set(viewport, [...(waiters.get(viewport) ?? []), resolve]);
-    requestFrame(viewport);
-  });
+/** Draw ``viewport`` now, not at the next animation frame (up to 16 ms away: the browser shows a canvas drawn
+ * between frames at the next one anyway); resolves with performance.now() once its pixels exist (not merely
+ * once the commands were issued: the renderer may run in another process, or on the CPU). Until then the
+ * other viewports wait, so that a software renderer works on the awaited pixels first. */
+export async function drawn(viewport) {
+  awaited += 1;
+  dirty.delete(viewport);
+  viewport.draw();
+  try {
+    return await viewport.pixelsDone();
+  } finally {
+    awaited -= 1;
+    scheduleFrame();
+  }
 }
 
 /** The view of a shape: which of its axes points up and which towards the viewer. ``up = "auto"``: z, as in
