@@ -16,7 +16,8 @@ Because ``Lam`` is diagonal, E separates by columns: column j of C solves the k 
 ``(G + alpha * diag((lam^N_i - lam^M_j)^2)) c_j = B[:, j]`` with ``G = sum_l w~_l PsiBar_l^T PsiBar_l`` and
 ``B = sum_l w~_l PsiBar_l^T PhiBar_l``. Each curve keeps its own k x k products, so adding, editing or
 removing one only re-sums k x k matrices before the k small solves (:mod:`curvefm.column_solve`).
-``C_NM`` is the same problem with the roles of M and N exchanged.
+``C_NM`` is the same problem with the roles of M and N exchanged; both are solved side by side on two threads,
+or, for an interactive server, ``C_MN`` alone on the calling thread and ``C_NM`` when first read.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from curvefm.basis import Basis
-from curvefm.column_solve import solve_both
+from curvefm.column_solve import solve_both, solve_columns
 from curvefm.curves import DEFAULT_SAMPLES, restrict
 from curvefm.errors import CurvefmError
 
@@ -54,6 +55,10 @@ class CurveMapSolver:
     >>> solver = CurveMapSolver(vertices_M, basis_M, vertices_N, basis_N, k=120)
     >>> cid = solver.add_curve(path_M, path_N)          # vertex paths, internal ids
     >>> C_MN, C_NM = solver.C_MN, solver.C_NM
+
+    ``interactive=True``: an edit solves ``C_MN`` on the calling thread only and ``C_NM`` is solved when first
+    read. The interactive loop shows the texture carried by ``C_MN``; a server sharing its cores between
+    sessions (or with a browser) edits faster this way than with two threads per edit.
     """
 
     def __init__(
@@ -65,6 +70,7 @@ class CurveMapSolver:
         k: int = DEFAULT_K,
         alpha: float = DEFAULT_ALPHA,
         samples: int = DEFAULT_SAMPLES,
+        interactive: bool = False,
     ):
         if k > min(basis_M.k, basis_N.k):
             raise CurvefmError(f"k = {k} exceeds the computed bases (M has {basis_M.k}, N has {basis_N.k})")
@@ -72,7 +78,7 @@ class CurveMapSolver:
             raise CurvefmError(f"alpha must be >= 0, got {alpha}")
         if samples < 2:
             raise CurvefmError(f"samples per curve must be at least 2, got {samples}")
-        self.k, self.alpha, self.samples = k, float(alpha), samples
+        self.k, self.alpha, self.samples, self.interactive = k, float(alpha), samples, interactive
         self.vertices_M, self.vertices_N = vertices_M, vertices_N
         self.basis_M, self.basis_N = basis_M.truncated(k), basis_N.truncated(k)
         scale = max(self.basis_M.evals[-1], self.basis_N.evals[-1], 1e-12)
@@ -80,7 +86,8 @@ class CurveMapSolver:
         self.curves: dict[str, CurveTerm] = {}
         self._ids = itertools.count(1)
         self.C_MN = np.zeros((k, k))
-        self.C_NM = np.zeros((k, k))
+        self._C_NM = np.zeros((k, k))
+        self._reverse_system: tuple[np.ndarray, np.ndarray] | None = None  # (G_M, B) while C_NM is stale
 
     # -- editing ----------------------------------------------------------------------------------------
     def add_curve(self, path_M, path_N, weight: float = 1.0, curve_id: str | None = None) -> str:
@@ -138,10 +145,24 @@ class CurveMapSolver:
 
     def _solve(self) -> None:
         if not self.curves:
-            self.C_MN, self.C_NM = np.zeros((self.k, self.k)), np.zeros((self.k, self.k))
+            self.C_MN, self._C_NM = np.zeros((self.k, self.k)), np.zeros((self.k, self.k))
+            self._reverse_system = None
             return
         G_M, G_N, B = self.normal_equations()
-        self.C_MN, self.C_NM = solve_both(G_N, G_M, B, self.lam_N, self.lam_M, self.alpha)
+        if self.interactive:
+            self.C_MN = solve_columns(G_N, B, self.lam_N, self.lam_M, self.alpha)
+            self._reverse_system = (G_M, B)
+        else:
+            self.C_MN, self._C_NM = solve_both(G_N, G_M, B, self.lam_N, self.lam_M, self.alpha)
+
+    @property
+    def C_NM(self) -> np.ndarray:
+        """The reverse map (with ``interactive``, solved on first use after an edit)."""
+        if self._reverse_system is not None:
+            G_M, B = self._reverse_system
+            self._C_NM = solve_columns(G_M, B.T, self.lam_M, self.lam_N, self.alpha)
+            self._reverse_system = None
+        return self._C_NM
 
     def energy(self, C_MN: np.ndarray) -> float:
         """E(C_MN) up to the constant sum_l w~_l ||PhiBar_l||^2 / s (so it may be negative)."""

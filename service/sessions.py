@@ -205,7 +205,9 @@ class SessionManager:
             self._basis(record.source, "source", record),
             self._basis(record.target, "target", record),
         )
-        solver, solver_ids = build_solver(record, pair)
+        # an edit solves only the map the texture needs, on one thread: with the cores shared (other sessions,
+        # or the browser in bench_ui_latency) that took the solve from 11-13 to 8 ms
+        solver, solver_ids = build_solver(record, pair, interactive=True)
         for mesh in pair.meshes:
             mesh.edge_graph  # noqa: B018  (cached property: built here so the first trace answers at once)
         return LiveSession(record, pair, solver, solver_ids, LRU(8))

@@ -86,6 +86,20 @@ def test_incremental_edits_equal_a_fresh_solve(pair):
     np.testing.assert_allclose(solver.C_NM, fresh.C_NM, atol=1e-10)
 
 
+def test_interactive_solver_defers_the_reverse_map_and_gives_the_same_maps(pair):
+    eager, _, paths = solver_with(pair, n_curves=2)
+    lazy, ids, _ = solver_with(pair, n_curves=2, interactive=True)
+    assert lazy._reverse_system is not None  # only C_MN was solved by the edit
+    np.testing.assert_allclose(lazy.C_MN, eager.C_MN, atol=1e-12)
+    np.testing.assert_allclose(lazy.C_NM, eager.C_NM, atol=1e-12)
+    for solver in (eager, lazy):  # an edit after a read invalidates the reverse map again
+        solver.add_curve(paths[0][::-1], paths[0][::-1], weight=3.0)
+    np.testing.assert_allclose(lazy.C_NM, eager.C_NM, atol=1e-12)
+    lazy.remove_curve(ids[0])
+    eager.remove_curve("c1")
+    np.testing.assert_allclose(lazy.C_NM, eager.C_NM, atol=1e-12)
+
+
 def test_invariant_to_the_number_of_curves_and_weights(pair):
     M, bM, N, bN = pair
     solver, _, paths = solver_with(pair)

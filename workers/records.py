@@ -101,7 +101,9 @@ def internal_paths(pair: ShapePair, curve: CurveRecord) -> tuple[np.ndarray, np.
     )
 
 
-def build_solver(record: SessionRecord, pair: ShapePair) -> tuple[CurveMapSolver, dict[str, str]]:
+def build_solver(
+    record: SessionRecord, pair: ShapePair, interactive: bool = False
+) -> tuple[CurveMapSolver, dict[str, str]]:
     """The session's solver with all its curves, and the map from session curve ids to solver curve ids."""
     solver = CurveMapSolver(
         pair.mesh_M.vertices,
@@ -111,6 +113,7 @@ def build_solver(record: SessionRecord, pair: ShapePair) -> tuple[CurveMapSolver
         k=record.k,
         alpha=record.alpha,
         samples=record.samples,
+        interactive=interactive,
     )
     if not record.curves:
         return solver, {}
