@@ -3,8 +3,8 @@
 Starts ``python -m curvefm.service`` (embedded jobs) on a free port, uploads both shapes, computes their bases
 through the job queue (reused from ``--data`` when given), then measures:
 
-* ``single``: round trip of ``POST /sessions/{id}/curves`` (trace on both shapes, solve the source -> target map, write the
-  session durably, answer) for ``--curves`` curves added one after another to one session;
+* ``single``: round trip of ``POST /sessions/{id}/curves`` (trace on both shapes, solve the source -> target
+  map, write the session durably, answer) for ``--curves`` curves added one after another to one session;
 * ``concurrent``: ``--sessions`` sessions on the same pair, one client thread each, every thread adding
   ``--per-session`` curves as fast as it can: throughput and per-request latency. Client threads share the
   machine's cores with the server.
