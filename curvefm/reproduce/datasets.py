@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 
 @dataclass(frozen=True)
@@ -54,7 +54,6 @@ class Suite:
     timing_counts: tuple[int, ...]
     timing_ks: tuple[int, ...]
     repeats: int
-    notes: list[str] = field(default_factory=list)
 
 
 SUITES = {
