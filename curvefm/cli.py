@@ -64,11 +64,15 @@ def cmd_evaluate(args) -> int:
     report = evaluate_pair(
         args.source, args.target, n_curves=args.curves, k=args.k, alpha=args.alpha,
         store=Store(args.data) if args.data else None, progress=progress_bar("evaluate"),
+        method=args.method, method_params=_json_option(args.method_params, "--method-params"),
     )
     if args.json:
         print(json.dumps(report, indent=2))
         return 0
-    print(f"{report['source']} -> {report['target']}  ({report['ground_truth']}, {args.curves} curves, k={args.k})")
+    print(
+        f"{report['source']} -> {report['target']}  ({report['ground_truth']}, {args.method}, {args.curves} curves, "
+        f"k={args.k})"
+    )
     for direction, e in report["errors"].items():
         print(
             f"  {direction:17s} mean error {e['mean']:.4f} (by geodesic diameter)  {e['mean_area']:.4f} "
@@ -151,6 +155,8 @@ def parser() -> argparse.ArgumentParser:
     e.add_argument("--curves", type=int, default=10, help="number of curves from the ground truth")
     e.add_argument("--k", type=int, default=DEFAULT_K)
     e.add_argument("--alpha", type=float, default=DEFAULT_ALPHA)
+    e.add_argument("--method", default="curves", help="map method plugin: curves (ours), obcs12, no17, ...")
+    e.add_argument("--method-params", default="{}", help="map method parameters as JSON")
     e.add_argument("--json", action="store_true", help="print the full report as JSON")
     e.set_defaults(run=cmd_evaluate)
 

@@ -134,16 +134,23 @@ def evaluate_pair(
     alpha: float = DEFAULT_ALPHA,
     store: Store | None = None,
     progress: Progress = no_progress,
+    method: str = "curves",
+    method_params: dict | None = None,
 ) -> dict:
-    """Match a pair with known ground truth using curves from that truth, and score it."""
+    """Match a pair with known ground truth using curves from that truth (``method``: any map method; the
+    descriptor baselines get the curves' endpoints as landmarks), and score it."""
     mesh_M, mesh_N = load_mesh(source), load_mesh(target)
     truth = ground_truth_for(source, target, mesh_M, mesh_N)
     curves = ground_truth_curves(mesh_M, mesh_N, truth, n_curves)
-    result = match(mesh_M, mesh_N, curves, k=k, alpha=alpha, store=store, progress=progress)
+    result = match(
+        mesh_M, mesh_N, curves, k=k, alpha=alpha, store=store, progress=progress,
+        method=method, method_params=method_params,
+    )  # fmt: skip
     return {
         "source": str(source),
         "target": str(target),
         "ground_truth": truth.kind,
+        "method": method,
         "curves": n_curves,
         "k": k,
         "alpha": alpha,

@@ -103,3 +103,13 @@ def test_evaluate_prints_json_errors(shared_data, tmp_path):
     assert report["ground_truth"] == "lion2cat"
     errors = report["errors"]["source_to_target"]
     assert 0 < errors["mean_area"] < 0.2 and len(errors["curve"]) == len(errors["radii"])
+
+
+def test_evaluate_scores_a_baseline_method(shared_data, tmp_path):
+    folder = shared_data / "faust"
+    run = curvefm("evaluate", folder / "tr_reg_000.off", folder / "tr_reg_011.off", "--curves", 5, "--k", 60,
+                  "--method", "obcs12", "--method-params", '{"spectrum": 60}', "--json", data=tmp_path / "data")
+    assert run.returncode == 0, run.stderr
+    report = json.loads(run.stdout)
+    assert report["method"] == "obcs12" and report["ground_truth"] == "identity"
+    assert 0 < report["errors"]["source_to_target"]["mean"] < 0.3
