@@ -6,10 +6,9 @@ import json
 
 from common import bench_store, machine, shared_data
 
-from curvefm.evaluation import ground_truth_for
-from curvefm.experiment import ground_truth_curves, score
+from curvefm.evaluation import ground_truth_curves, ground_truth_for, score
+from curvefm.geometry import load_mesh
 from curvefm.matching import match
-from curvefm.mesh import load_mesh
 
 PAIRS = [
     ("faust/tr_reg_000.off", "faust/tr_reg_011.off"),

@@ -1,4 +1,4 @@
-"""The per-column systems of one map update (curvefm.column_solve) on FAUST tr_reg_000 -> tr_reg_011.
+"""The per-column systems of one map update (curvefm.fmap.column_solve) on FAUST tr_reg_000 -> tr_reg_011.
 
 For k = 30, 60, 120, 200, 1 / 5 / 10 geodesic curves (random vertex pairs; FAUST meshes share vertex ids, so
 the same path on both) and alpha = 0.01, 0.1, 1, 100: median wall time of
@@ -33,10 +33,8 @@ import numpy as np  # noqa: E402
 from common import machine, shared_data  # noqa: E402
 from scipy.linalg import lapack  # noqa: E402
 
-from curvefm.column_solve import column_diagonals, solve_both, solve_columns  # noqa: E402
-from curvefm.curves import restrict  # noqa: E402
-from curvefm.mesh import load_mesh  # noqa: E402
-from curvefm.paths import shortest_path  # noqa: E402
+from curvefm.fmap import column_diagonals, restrict, solve_both, solve_columns
+from curvefm.geometry import load_mesh, shortest_path
 from curvefm.registry import get  # noqa: E402
 
 CACHE = Path("/tmp/curvefm-bench-columns")

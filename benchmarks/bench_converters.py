@@ -1,6 +1,6 @@
 """Time and error of each converter from the 10-curve maps, on FAUST 000 -> 011 and cat -> lion (prints JSON).
 
-The 10 curves follow the core issue's protocol (:mod:`curvefm.experiment`); every converter starts from the
+The 10 curves follow the core issue's protocol (:mod:`curvefm.evaluation.protocol`); every converter starts from the
 same two functional maps (k = 120, the session defaults). Errors are mean geodesic error / sqrt(area of the
 mesh each map lands on), both directions. ``seconds`` is the converter alone (bases and curves are ready), the
 median of ``--repeat`` runs. ``worker`` runs ``rhm`` with its defaults on FAUST as a refinement job on the in-process
@@ -20,15 +20,13 @@ import numpy as np
 from common import bench_store, machine, shared_data
 
 from curvefm import registry
-from curvefm.curves import DEFAULT_SAMPLES
-from curvefm.evaluation import evaluate_map, ground_truth_for
-from curvefm.experiment import ground_truth_curves, score
-from curvefm.matching import CurveSpec, MatchResult, match
-from curvefm.mesh import load_mesh
-from curvefm.solver import DEFAULT_ALPHA, DEFAULT_K
+from curvefm.evaluation import evaluate_map, ground_truth_curves, ground_truth_for, score
+from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K, DEFAULT_SAMPLES
+from curvefm.geometry import load_mesh
+from curvefm.matching import MatchResult, match
+from curvefm.session import CurveRecord, CurveSpec, SessionRecord
 from curvefm.store import Store
 from curvefm.workers.queue import EmbeddedQueue
-from curvefm.workers.records import CurveRecord, SessionRecord
 
 PAIRS = {
     "faust_000_011": ("faust/tr_reg_000.off", "faust/tr_reg_011.off"),

@@ -11,11 +11,8 @@ import json
 import numpy as np
 from common import bench_store, machine, median_ms, shared_data
 
-from curvefm.evaluation import farthest_point_sampling
-from curvefm.mesh import load_mesh
-from curvefm.paths import shortest_path
-from curvefm.solver import CurveMapSolver, conjugate_gradient_solve
-from curvefm.transfer import FunctionTransfer
+from curvefm.fmap import CurveMapSolver, FunctionTransfer, conjugate_gradient_solve
+from curvefm.geometry import farthest_point_sampling, load_mesh, shortest_path
 
 REPEAT = 31
 

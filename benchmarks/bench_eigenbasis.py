@@ -1,4 +1,4 @@
-"""Eigenbasis k = 120: ``curvefm.eigen.smallest_eigenpairs`` against the plain ``eigsh(L, k, M=A, sigma=-0.01)``.
+"""Eigenbasis k = 120: ``curvefm.spectral.smallest_eigenpairs`` against the plain ``eigsh(L, k, M=A, sigma=-0.01)``.
 
 Budget (DESIGN.md): on a 30k-vertex mesh, <= 0.5x the plain call's time with the same eigenvalues (1e-6
 relative). Meshes: FAUST tr_reg_000 (6890 vertices) and TOSCA cat0 (27894), built as the basis plugin builds
@@ -26,9 +26,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import eigsh
 
-from curvefm.eigen import smallest_eigenpairs
-from curvefm.laplacian import cotangent_laplacian
-from curvefm.mesh import load_mesh
+from curvefm.geometry import cotangent_laplacian, load_mesh
+from curvefm.spectral import smallest_eigenpairs
 
 DATA = Path(os.environ.get("CURVEFM_SHARED_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
 MESHES = {"faust_tr_reg_000": "faust/tr_reg_000.off", "tosca_cat0": "tosca/cat0.off"}

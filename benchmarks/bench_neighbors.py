@@ -5,7 +5,7 @@
 * ``zoomout``: FAUST tr_reg_000 -> 011 (6,890 vertices) at the sizes ZoomOut steps through (20 to 120).
 * ``rhm``: FAUST, the 16-dimensional stacked geodesic-MDS embeddings RHM projects in (from 10-curve maps).
 
-Methods: faiss ``IndexFlatL2``, blocked float32 matrix products (:mod:`curvefm.neighbors`), and scipy's
+Methods: faiss ``IndexFlatL2``, blocked float32 matrix products (:mod:`curvefm.pointwise.neighbors`), and scipy's
 ``cKDTree`` (built and queried on all cores). Where the tree would take minutes it answers a random subset of
 the queries and the time is extrapolated linearly (``extrapolated_from`` says how many it ran): the cost per
 query of a tree search does not depend on how many queries there are. Times are medians in seconds.
@@ -22,13 +22,11 @@ import numpy as np
 from common import bench_store, machine, median_ms, shared_data
 from scipy.spatial import cKDTree
 
-from curvefm.evaluation import ground_truth_for
-from curvefm.experiment import ground_truth_curves
+from curvefm.evaluation import ground_truth_curves, ground_truth_for
+from curvefm.geometry import load_mesh
 from curvefm.matching import match
-from curvefm.mesh import load_mesh
-from curvefm.neighbors import nearest_neighbors
 from curvefm.plugins.rhm import RhmParams, prepare_shape
-from curvefm.pointwise import fmap_from_pointwise
+from curvefm.pointwise import fmap_from_pointwise, nearest_neighbors
 
 # Above this many seconds (estimated from a first subset), the tree answers only a subset of the queries.
 TREE_FULL_LIMIT_S = 20.0

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 from scipy.sparse.csgraph import dijkstra
 
-from curvefm.mesh import load_mesh
+from curvefm.geometry import load_mesh
 from curvefm.plugins import tracers
 
 DEFAULT_MESH = Path(__file__).resolve().parents[2] / "shared" / "data" / "tosca" / "cat0.off"

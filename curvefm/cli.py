@@ -11,7 +11,7 @@ import json
 import sys
 
 from curvefm.errors import CurvefmError
-from curvefm.solver import DEFAULT_ALPHA, DEFAULT_K
+from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K
 
 
 def progress_bar(description: str):
@@ -30,8 +30,9 @@ def progress_bar(description: str):
 
 
 def cmd_match(args) -> int:
-    from curvefm.matching import match, read_curves, write_outputs
-    from curvefm.mesh import load_mesh
+    from curvefm.geometry import load_mesh
+    from curvefm.matching import match, write_outputs
+    from curvefm.session import read_curves
     from curvefm.store import Store
 
     mesh_M, mesh_N = load_mesh(args.source), load_mesh(args.target)
@@ -58,7 +59,7 @@ def _json_option(text: str, option: str) -> dict:
 
 
 def cmd_evaluate(args) -> int:
-    from curvefm.experiment import evaluate_pair
+    from curvefm.evaluation import evaluate_pair
     from curvefm.store import Store
 
     report = evaluate_pair(
@@ -101,7 +102,7 @@ def cmd_plugins(args) -> int:
 
 
 def cmd_reproduce(args) -> int:
-    from curvefm.reproduce import reproduce
+    from curvefm.evaluation.reproduce import reproduce
     from curvefm.store import Store
 
     command = "curvefm " + " ".join(sys.argv[1:]) if sys.argv[1:2] == ["reproduce"] else "curvefm reproduce"

@@ -2,75 +2,26 @@
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel
 
 from curvefm import registry
-from curvefm.basis import Basis
-from curvefm.curves import DEFAULT_SAMPLES, trace_curve
 from curvefm.errors import CurvefmError
-from curvefm.mesh import Mesh, save_mesh
-from curvefm.methods import MapInputs
+from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K, DEFAULT_SAMPLES, MapInputs, transfer
+from curvefm.geometry import Mesh, save_mesh, texture_coordinates
 from curvefm.pointwise import MapProblem, PointwiseMaps
 from curvefm.progress import Progress, no_progress, scaled
-from curvefm.solver import DEFAULT_ALPHA, DEFAULT_K
+from curvefm.session import CurveSpec, trace_pair
+from curvefm.spectral import Basis
 from curvefm.store import Store
-from curvefm.texture import texture_coordinates
-from curvefm.transfer import transfer
-
-
-class CurveSpec(BaseModel):
-    """One pair of corresponding curves, in file vertex ids (0-based).
-
-    ``source`` and ``target`` are endpoints or waypoints joined by the tracer, or, with ``explicit``, whole
-    edge-connected vertex paths.
-    """
-
-    model_config = ConfigDict(extra="forbid")
-    source: list[int] = Field(min_length=1)
-    target: list[int] = Field(min_length=1)
-    explicit: bool = False
-    tracer: str | None = None
-    tracer_params: dict = Field(default_factory=dict)
-    weight: float = Field(1.0, gt=0)
-
-
-class CurvesFile(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    curves: list[CurveSpec]
-
-
-def read_curves(path: str | Path) -> list[CurveSpec]:
-    try:
-        return CurvesFile.model_validate(json.loads(Path(path).read_text())).curves
-    except FileNotFoundError:
-        raise CurvefmError(f"curves file not found: {path}", kind="not_found") from None
-    except json.JSONDecodeError as exc:
-        raise CurvefmError(f"curves file {path} is not valid JSON: {exc}") from None
-    except ValidationError as exc:
-        first = exc.errors()[0]
-        where = ".".join(str(p) for p in first["loc"])
-        raise CurvefmError(f"curves file {path}: {where}: {first['msg']}") from None
 
 
 def converter_basis_size(params: BaseModel) -> int:
     """Basis functions per shape a converter works with (its params' ``basis_size()``, 0 if it has none)."""
     return params.basis_size() if hasattr(params, "basis_size") else 0
-
-
-def trace_pair(mesh_M: Mesh, mesh_N: Mesh, spec: CurveSpec, default_tracer: str) -> tuple[np.ndarray, np.ndarray]:
-    tracer = spec.tracer or default_tracer
-    paths = []
-    for mesh, ids in ((mesh_M, spec.source), (mesh_N, spec.target)):
-        if spec.explicit:
-            paths.append(trace_curve(mesh, path=ids))
-        else:
-            paths.append(trace_curve(mesh, waypoints=ids, tracer=tracer, params=spec.tracer_params))
-    return paths[0], paths[1]
 
 
 @dataclass

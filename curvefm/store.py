@@ -22,10 +22,10 @@ from pathlib import Path
 import numpy as np
 
 from curvefm import registry
-from curvefm.basis import Basis
 from curvefm.errors import CurvefmError
-from curvefm.mesh import Mesh, MeshReport
+from curvefm.geometry import Mesh, MeshReport
 from curvefm.progress import Progress, no_progress
+from curvefm.spectral import Basis
 
 
 def default_data_dir() -> Path:

@@ -7,12 +7,10 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from curvefm.basis import Basis, check_k
-from curvefm.eigen import smallest_eigenpairs
-from curvefm.laplacian import cotangent_laplacian, robust_laplacian
-from curvefm.mesh import Mesh
+from curvefm.geometry import Mesh, cotangent_laplacian, robust_laplacian
 from curvefm.progress import Progress, no_progress
 from curvefm.registry import Plugin
+from curvefm.spectral import Basis, check_k, smallest_eigenpairs
 
 
 class LaplaceBeltramiParams(BaseModel):
@@ -29,7 +27,7 @@ def compute_laplace_beltrami(
 ) -> Basis:
     check_k(k, mesh.n_vertices, mesh.name)
     progress(0.0, "building the Laplacian")
-    vertices = mesh.vertices / np.sqrt(mesh.area)  # unit total area: see curvefm.basis
+    vertices = mesh.vertices / np.sqrt(mesh.area)  # unit total area: see curvefm.spectral.basis
     build = robust_laplacian if params.laplacian == "robust" else cotangent_laplacian
     L, mass = build(vertices, mesh.faces)
     mass = mass / mass.sum()

@@ -18,11 +18,17 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from curvefm.basis import Basis
-from curvefm.pointwise import MapProblem, PointwiseMaps, fmap_from_pointwise, pointwise_from_fmap
+from curvefm.pointwise import (
+    MapProblem,
+    PointwiseMaps,
+    bases_with,
+    fmap_from_pointwise,
+    initial_maps,
+    pointwise_from_fmap,
+)
 from curvefm.progress import Progress, no_progress, scaled
-from curvefm.refine_common import bases_with, initial_maps
 from curvefm.registry import Plugin
+from curvefm.spectral import Basis
 
 
 class IcpParams(BaseModel):

@@ -12,17 +12,11 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from curvefm.basis import Basis
-from curvefm.curves import DEFAULT_SAMPLES
-from curvefm.descriptors import (
-    curve_function,
-    multiplication_operators,
-    normalised,
-    wave_kernel_maps,
-    wave_kernel_signature,
-)
 from curvefm.errors import CurvefmError
-from curvefm.methods import (
+from curvefm.fmap import (
+    DEFAULT_ALPHA,
+    DEFAULT_SAMPLES,
+    CurveMapSolver,
     DescriptorEnergy,
     FunctionalMaps,
     MapInputs,
@@ -33,7 +27,14 @@ from curvefm.methods import (
 )
 from curvefm.progress import Progress, no_progress
 from curvefm.registry import Plugin
-from curvefm.solver import DEFAULT_ALPHA, CurveMapSolver
+from curvefm.spectral import (
+    Basis,
+    curve_function,
+    multiplication_operators,
+    normalised,
+    wave_kernel_maps,
+    wave_kernel_signature,
+)
 
 
 class CurvesParams(BaseModel):

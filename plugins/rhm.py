@@ -3,9 +3,9 @@ between Discrete Surfaces", ACM TOG 38(2), 2019; arXiv 2018).
 
 Formulation followed: the paper's, with the weights and schedule of the authors' code as carried by the
 public Python port (RobinMagnet/ReversibleHarmonicMaps, ``rhm_refine``). Both meshes are scaled to unit area
-and embedded in R^dim by geodesic MDS (:mod:`curvefm.embedding`): X_M (m x dim), X_N (n x dim). The unknowns
-are the maps P_MN, P_NM (rows: a vertex or a point on a triangle of the other mesh) and the continuous
-images X_MN ~ P_MN X_N, X_NM ~ P_NM X_M. The energy, summed over both directions, is::
+and embedded in R^dim by geodesic MDS (:mod:`curvefm.pointwise.geodesic_embedding`): X_M (m x dim),
+X_N (n x dim). The unknowns are the maps P_MN, P_NM (rows: a vertex or a point on a triangle of the other
+mesh) and the continuous images X_MN ~ P_MN X_N, X_NM ~ P_NM X_M. The energy, summed over both directions, is::
 
     alpha * tr(X_MN^T L_M X_MN)                 Dirichlet energy of the map M -> N
     + (1 - alpha) * |X_N - P_NM X_MN|^2_{A_N}   reversibility: N -> M -> N is the identity
@@ -44,12 +44,18 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from scipy.sparse.linalg import splu
 from scipy.spatial import cKDTree
 
-from curvefm.embedding import closest_points, geodesic_embedding
-from curvefm.laplacian import cotangent_laplacian
+from curvefm.geometry import cotangent_laplacian
 from curvefm.plugins.zoomout import ZoomOutParams, convert_zoomout
-from curvefm.pointwise import MapProblem, PointwiseMaps
+from curvefm.pointwise import (
+    MapProblem,
+    PointwiseMaps,
+    closest_points,
+    geodesic_embedding,
+    initial_maps,
+    surface,
+    unit_area_vertices,
+)
 from curvefm.progress import Progress, no_progress, scaled
-from curvefm.refine_common import initial_maps, surface, unit_area_vertices
 from curvefm.registry import Plugin
 
 ENERGY_WINDOW = 5  # iterations over which the energy change is measured

@@ -2,7 +2,8 @@
 
 Both tracers return ``path`` (int64 **internal** vertex ids, ``path[0] == start``, ``path[-1] == end``,
 consecutive entries share a mesh edge) and run Dijkstra on a weighted edge graph (a search bounded by a few
-times the endpoints' straight-line distance first, then :func:`curvefm.paths.shortest_path` over the mesh).
+times the endpoints' straight-line distance first, then
+:func:`curvefm.geometry.graph_paths.shortest_path` over the mesh).
 
 ``geodesic``
     Edge weights are Euclidean edge lengths (``mesh.edge_graph``, cached on the mesh): the shortest edge path,
@@ -44,7 +45,7 @@ times the endpoints' straight-line distance first, then :func:`curvefm.paths.sho
     parameters) are kept in small LRUs keyed by ``mesh.content_hash``, never by the mesh object, so tracing
     on many meshes does not pile them up in memory.
 
-Ids are internal (see :mod:`curvefm.mesh`); callers translate file ids with ``mesh.internal_ids`` first.
+Ids are internal (see :mod:`curvefm.geometry.mesh`); callers translate file ids with ``mesh.internal_ids`` first.
 """
 
 from __future__ import annotations
@@ -59,8 +60,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from scipy.sparse.csgraph import dijkstra
 
 from curvefm.errors import CurvefmError
-from curvefm.mesh import Mesh, edge_weight_graph
-from curvefm.paths import shortest_path
+from curvefm.geometry import Mesh, edge_weight_graph, shortest_path
 from curvefm.registry import Plugin
 
 # ----------------------------------------------------------------------------------------------------------
@@ -122,7 +122,7 @@ def _trace(mesh: Mesh, graph: sp.csr_matrix, start: int, end: int) -> np.ndarray
     search within ``SEARCH_RADIUS`` times the straight-line distance of the endpoints (about 10x faster than a
     whole-mesh search on a 30k-vertex mesh for endpoints 5-15% of the diagonal apart) and only when ``end``
     was not reached (a path that must detour, or a different component) search the whole mesh. Endpoints on
-    different components are reported by :func:`curvefm.paths.shortest_path` (the shared message).
+    different components are reported by :func:`curvefm.geometry.graph_paths.shortest_path` (the shared message).
     """
     if start == end:
         return np.array([start], dtype=np.int64)

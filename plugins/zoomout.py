@@ -19,12 +19,10 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from curvefm.basis import Basis
-from curvefm.neighbors import nearest_neighbors
-from curvefm.pointwise import MapProblem, PointwiseMaps
+from curvefm.pointwise import MapProblem, PointwiseMaps, bases_with, initial_maps, nearest_neighbors, spread_samples
 from curvefm.progress import Progress, no_progress, scaled
-from curvefm.refine_common import bases_with, initial_maps, spread_samples
 from curvefm.registry import Plugin
+from curvefm.spectral import Basis
 
 
 class ZoomOutParams(BaseModel):

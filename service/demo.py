@@ -14,11 +14,11 @@ import numpy as np
 
 from curvefm import registry
 from curvefm.errors import CurvefmError
-from curvefm.matching import CurveSpec
-from curvefm.mesh import Mesh, build_mesh
+from curvefm.fmap import DEFAULT_K
+from curvefm.geometry import Mesh, build_mesh
 from curvefm.service.deps import Services, submit_basis
 from curvefm.service.models import SessionCreate
-from curvefm.solver import DEFAULT_K
+from curvefm.session import CurveSpec
 
 log = logging.getLogger("curvefm.demo")
 

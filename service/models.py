@@ -11,9 +11,8 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from curvefm.curves import DEFAULT_SAMPLES
-from curvefm.solver import DEFAULT_ALPHA, DEFAULT_K
-from curvefm.workers.records import CurveRecord
+from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K, DEFAULT_SAMPLES
+from curvefm.session import CurveRecord
 
 JobStateName = Literal["queued", "started", "finished", "failed", "canceled"]
 

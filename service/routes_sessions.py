@@ -6,9 +6,8 @@ from typing import Annotated
 
 from fastapi import APIRouter, Query, Response
 
-from curvefm.basis import check_k
 from curvefm.errors import CurvefmError
-from curvefm.matching import CurveSpec, converter_basis_size
+from curvefm.matching import converter_basis_size
 from curvefm.service.deps import ServicesDep, job_model
 from curvefm.service.errors import require_plugin
 from curvefm.service.models import (
@@ -21,7 +20,8 @@ from curvefm.service.models import (
     SessionSummary,
 )
 from curvefm.service.sessions import TransferFunction
-from curvefm.workers.records import SessionRecord
+from curvefm.session import CurveSpec, SessionRecord
+from curvefm.spectral import check_k
 
 router = APIRouter(tags=["sessions"])
 ERRORS = {status: {"model": ErrorBody} for status in (400, 404, 409)}

@@ -11,13 +11,12 @@ from typing import Annotated, BinaryIO, Literal
 import numpy as np
 from fastapi import APIRouter, File, Form, Response, UploadFile
 
-from curvefm.basis import check_k
 from curvefm.errors import CurvefmError
-from curvefm.mesh import SUPPORTED_FORMATS, Mesh, load_mesh
+from curvefm.geometry import SUPPORTED_FORMATS, Mesh, load_mesh, texture_coordinates
 from curvefm.service.deps import Services, ServicesDep, job_model, submit_basis
 from curvefm.service.errors import require_plugin
 from curvefm.service.models import BasisInfo, BasisRequest, ErrorBody, JobInfoModel, ShapeInfo
-from curvefm.texture import texture_coordinates
+from curvefm.spectral import check_k
 
 router = APIRouter(tags=["shapes"])
 ERRORS = {status: {"model": ErrorBody} for status in (400, 404, 409, 413)}

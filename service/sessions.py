@@ -18,26 +18,25 @@ from typing import Literal
 
 import numpy as np
 
-from curvefm.basis import Basis, check_k
 from curvefm.errors import CurvefmError
-from curvefm.matching import CurveSpec, trace_pair
-from curvefm.mesh import Mesh
+from curvefm.fmap import CurveMapSolver, FunctionTransfer
+from curvefm.geometry import Mesh, texture_coordinates
 from curvefm.service.cache import LRU
 from curvefm.service.errors import require_plugin
 from curvefm.service.models import MapSummary, SessionCreate
-from curvefm.solver import CurveMapSolver
-from curvefm.store import Store, atomic_write, params_key
-from curvefm.texture import texture_coordinates
-from curvefm.transfer import FunctionTransfer
-from curvefm.workers.records import (
+from curvefm.session import (
     CurveRecord,
+    CurveSpec,
     SessionRecord,
     ShapePair,
     basis_available,
     build_solver,
     load_basis,
     missing_basis_error,
+    trace_pair,
 )
+from curvefm.spectral import Basis, check_k
+from curvefm.store import Store, atomic_write, params_key
 
 TransferFunction = Literal["uv", "xyz", "indicator"]
 _SESSION_ID = re.compile(r"^[A-Za-z0-9_-]{1,64}$")

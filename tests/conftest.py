@@ -88,7 +88,7 @@ class Api:
     def demo_pair(self, folder: Path, k: int, suffix: str = ".off") -> tuple[list[str], str]:
         """Upload the two generated demo shapes (4098 vertices, same ids), compute their bases and create a
         session; return the shape ids and the session id."""
-        from curvefm.mesh import save_mesh
+        from curvefm.geometry import save_mesh
         from curvefm.service.demo import demo_shapes
 
         ids = []

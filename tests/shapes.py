@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from curvefm.mesh import build_mesh
+from curvefm.geometry import build_mesh
 
 
 def ellipsoid(n_lat=24, n_lon=48, radii=(1.0, 0.7, 0.5), scale=1.0):

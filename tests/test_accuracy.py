@@ -2,10 +2,9 @@
 
 import pytest
 
-from curvefm.evaluation import ground_truth_for
-from curvefm.experiment import ground_truth_curves, score
+from curvefm.evaluation import ground_truth_curves, ground_truth_for, score
+from curvefm.geometry import load_mesh
 from curvefm.matching import match
-from curvefm.mesh import load_mesh
 from curvefm.store import Store
 
 

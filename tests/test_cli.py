@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from shapes import ellipsoid
 
-from curvefm.mesh import load_mesh, save_mesh
+from curvefm.geometry import load_mesh, save_mesh
 
 
 def curvefm(*args, data):

@@ -1,11 +1,10 @@
-"""The per-column systems of a map update (curvefm.column_solve) against a plain float64 reference."""
+"""The per-column systems of a map update (curvefm.fmap.column_solve) against a plain float64 reference."""
 
 import numpy as np
 import pytest
 
-from curvefm import column_solve
-from curvefm.column_solve import column_diagonals, column_ridge, solve_both, solve_columns
 from curvefm.errors import CurvefmError
+from curvefm.fmap import column_diagonals, column_ridge, column_solve, solve_both, solve_columns
 
 
 def reference(G, B, lam_rows, lam_cols, alpha):
@@ -141,9 +140,8 @@ def test_bad_input_is_rejected():
 @pytest.mark.slow
 def test_faust_curves_match_reference(shared_data):
     """The acceptance inputs: one and five geodesic curves between FAUST tr_reg_000 and tr_reg_011."""
-    from curvefm.curves import restrict
-    from curvefm.mesh import load_mesh
-    from curvefm.paths import shortest_path
+    from curvefm.fmap import restrict
+    from curvefm.geometry import load_mesh, shortest_path
     from curvefm.registry import get
 
     k = 120

@@ -1,6 +1,6 @@
 """Refining converters (icp, zoomout, rhm) on real shapes with ground truth: the refinement issue's acceptance.
 
-Every case starts from the 10-curve maps of the core issue's protocol (curvefm.experiment). Iteration counts of
+Every case starts from the 10-curve maps of the core issue's protocol (curvefm.evaluation.protocol). Iteration counts of
 ``rhm`` are cut to 30 (the defaults stop after about 110) to keep this file near two minutes; the benchmark
 (benchmarks/bench_converters.py) runs the defaults.
 """
@@ -15,18 +15,16 @@ import numpy as np
 import pytest
 
 from curvefm import registry
-from curvefm.curves import DEFAULT_SAMPLES
-from curvefm.embedding import closest_points
 from curvefm.errors import CurvefmError
-from curvefm.evaluation import evaluate_map, ground_truth_for
-from curvefm.experiment import ground_truth_curves, score
-from curvefm.matching import CurveSpec, MatchResult, match
-from curvefm.mesh import load_mesh
+from curvefm.evaluation import evaluate_map, ground_truth_curves, ground_truth_for, score
+from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K, DEFAULT_SAMPLES
+from curvefm.geometry import load_mesh
+from curvefm.matching import MatchResult, match
+from curvefm.pointwise import closest_points
 from curvefm.progress import Cancelled, no_progress
-from curvefm.solver import DEFAULT_ALPHA, DEFAULT_K
+from curvefm.session import CurveRecord, CurveSpec, SessionRecord
 from curvefm.store import Store
 from curvefm.workers.queue import EmbeddedQueue
-from curvefm.workers.records import CurveRecord, SessionRecord
 
 FAUST = ("faust/tr_reg_000.off", "faust/tr_reg_011.off")
 CAT_LION = ("nonisometric/pyfm_cat_lion/cat-00.off", "nonisometric/pyfm_cat_lion/lion-00.off")

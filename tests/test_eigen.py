@@ -1,4 +1,4 @@
-"""curvefm.eigen.smallest_eigenpairs against the plain shift-invert eigsh, on a real mesh (lion, 5000 vertices)."""
+"""curvefm.spectral.smallest_eigenpairs against the plain shift-invert eigsh, on a real mesh (lion, 5000 vertices)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,8 @@ import pytest
 import scipy.sparse as sp
 from scipy.sparse.linalg import eigsh
 
-from curvefm import eigen
-from curvefm.laplacian import cotangent_laplacian
-from curvefm.mesh import load_mesh
+from curvefm.geometry import cotangent_laplacian, load_mesh
+from curvefm.spectral import eigensolver as eigen
 
 K = 40
 

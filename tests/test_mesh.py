@@ -5,7 +5,7 @@ import pytest
 import trimesh
 
 from curvefm.errors import CurvefmError
-from curvefm.mesh import build_mesh, load_mesh, save_mesh
+from curvefm.geometry import build_mesh, load_mesh, save_mesh
 
 
 def grid(n=6, shuffle_seed=0):

@@ -5,14 +5,12 @@ import pytest
 from shapes import basis_of, stretched_ellipsoid_pair
 
 from curvefm import registry
-from curvefm.descriptors import curve_function, multiplication_operators, wave_kernel_maps, wave_kernel_signature
 from curvefm.errors import CurvefmError
-from curvefm.evaluation import ground_truth_for
-from curvefm.experiment import CurvePool
-from curvefm.mesh import build_mesh, load_mesh
-from curvefm.methods import DescriptorEnergy, MapInputs, curve_endpoints, descriptor_least_squares, lbfgs
-from curvefm.paths import check_edge_path, shortest_path
+from curvefm.evaluation import CurvePool, ground_truth_for
+from curvefm.fmap import DescriptorEnergy, MapInputs, curve_endpoints, descriptor_least_squares, lbfgs
+from curvefm.geometry import build_mesh, check_edge_path, load_mesh, shortest_path
 from curvefm.pointwise import pointwise_from_fmap
+from curvefm.spectral import curve_function, multiplication_operators, wave_kernel_maps, wave_kernel_signature
 
 
 @pytest.fixture(scope="module")

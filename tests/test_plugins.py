@@ -15,7 +15,7 @@ THIRD_PARTY_PLUGIN = '''
 import numpy as np
 from pydantic import BaseModel, ConfigDict
 
-from curvefm.paths import shortest_path
+from curvefm.geometry.graph_paths import shortest_path
 from curvefm.registry import Plugin
 
 
@@ -83,7 +83,7 @@ def test_a_third_party_tracer_installed_with_pip_is_listed_and_used(tmp_path):
         import sys
         sys.path.insert(0, "tests")
         from shapes import ellipsoid
-        from curvefm.curves import trace_curve
+        from curvefm.session import trace_curve
         path = trace_curve(ellipsoid(), waypoints=[0, 600], tracer="hops", params={"hops": 2})
         print(path[0], path[-1], len(path))
     ''')

@@ -8,8 +8,8 @@ import sys
 import pytest
 
 from curvefm.errors import CurvefmError
-from curvefm.reproduce import reproduce
-from curvefm.reproduce.accuracy import VARIANTS
+from curvefm.evaluation.reproduce import reproduce
+from curvefm.evaluation.reproduce.accuracy import VARIANTS
 
 
 @pytest.fixture(scope="module")

@@ -8,8 +8,8 @@ import struct
 import numpy as np
 import pytest
 
+from curvefm.geometry import texture_coordinates
 from curvefm.service.demo import demo_shapes
-from curvefm.texture import texture_coordinates
 
 K = 30
 

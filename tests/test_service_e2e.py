@@ -11,9 +11,10 @@ import io
 import numpy as np
 import pytest
 
-from curvefm.evaluation import evaluate_map, farthest_point_sampling, identity_truth
-from curvefm.matching import CurveSpec, match
-from curvefm.mesh import load_mesh
+from curvefm.evaluation import evaluate_map, identity_truth
+from curvefm.geometry import farthest_point_sampling, load_mesh
+from curvefm.matching import match
+from curvefm.session import CurveSpec
 from curvefm.store import Store
 
 K = 60

@@ -5,8 +5,8 @@ import pytest
 from shapes import basis_of, ellipsoid, stretched_ellipsoid_pair
 
 from curvefm.errors import CurvefmError
-from curvefm.paths import shortest_path
-from curvefm.solver import CurveMapSolver, conjugate_gradient_solve, quasi_newton_solve
+from curvefm.fmap import CurveMapSolver, conjugate_gradient_solve, quasi_newton_solve
+from curvefm.geometry import shortest_path
 
 K = 30
 

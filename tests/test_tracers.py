@@ -10,8 +10,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from curvefm import registry
 from curvefm.errors import CurvefmError
-from curvefm.mesh import build_mesh, load_mesh
-from curvefm.paths import check_edge_path
+from curvefm.geometry import build_mesh, check_edge_path, load_mesh
 from curvefm.plugins import tracers
 from curvefm.plugins.tracers import ANISOTROPIC, GEODESIC
 

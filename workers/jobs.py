@@ -17,9 +17,9 @@ from curvefm import registry
 from curvefm.errors import CurvefmError
 from curvefm.matching import MatchResult, converter_basis_size, write_outputs
 from curvefm.progress import scaled
+from curvefm.session import SessionRecord, build_solver, internal_paths, load_pair
 from curvefm.store import Store, params_key
 from curvefm.workers.context import running_job
-from curvefm.workers.records import SessionRecord, build_solver, internal_paths, load_pair
 
 
 def compute_basis(

@@ -5,8 +5,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from curvefm.reproduce.accuracy import VARIANTS
-from curvefm.reproduce.datasets import DATASETS, NON_ISOMETRIC
+from curvefm.evaluation.reproduce.accuracy import VARIANTS
+from curvefm.evaluation.reproduce.datasets import DATASETS, NON_ISOMETRIC
 
 INTERACTIVE_MS = 100.0  # the UI's click-to-texture budget: what "interactive" means here
 NEAR_EXACT = 1.25  # traced counts as "almost as good" as exact within this error ratio

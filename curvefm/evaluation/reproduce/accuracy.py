@@ -12,11 +12,10 @@ import numpy as np
 
 from curvefm import registry
 from curvefm.errors import CurvefmError
-from curvefm.methods import MapInputs
+from curvefm.evaluation.reproduce.datasets import DATASETS, Suite
+from curvefm.evaluation.reproduce.scoring import LoadedPair
+from curvefm.fmap import DEFAULT_K, MapInputs
 from curvefm.progress import Progress, no_progress
-from curvefm.reproduce.datasets import DATASETS, Suite
-from curvefm.reproduce.scoring import LoadedPair
-from curvefm.solver import DEFAULT_K
 from curvefm.store import Store
 
 

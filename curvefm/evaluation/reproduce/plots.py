@@ -5,8 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from curvefm.errors import CurvefmError
-from curvefm.evaluation import CURVE_RADII
-from curvefm.reproduce.accuracy import VARIANTS
+from curvefm.evaluation.metrics import CURVE_RADII
+from curvefm.evaluation.reproduce.accuracy import VARIANTS
 
 LABELS = {v.key: v.label for v in VARIANTS}
 STYLES = {"curves-traced": "-", "curves-exact": "--", "obcs12-wks": (0, (1, 3)), "obcs12": ":", "no17": "-.",

@@ -3,12 +3,12 @@
 Two experiments, each writing a JSON table and PNG plots into the output folder, then a Markdown report
 that states for each of the paper's claims whether it holds on our data:
 
-* ``accuracy`` (:mod:`curvefm.reproduce.accuracy`): Figures 10/11, error against the number of curves,
+* ``accuracy`` (:mod:`curvefm.evaluation.reproduce.accuracy`): Figures 10/11, error against the number of curves,
   exact vs traced curves, against the OBCS12 and NO17 baselines;
-* ``timing`` (:mod:`curvefm.reproduce.timing`): Figures 13/14, update time of our solver, the paper's CG and
+* ``timing`` (:mod:`curvefm.evaluation.reproduce.timing`): Figures 13/14, update time of our solver, the paper's CG and
   L-BFGS, and time and accuracy against the basis size.
 
-Suites (:mod:`curvefm.reproduce.datasets`): ``full`` (12 pairs, 1-20 curves, 3 seeds) and ``ci`` (2 pairs).
+Suites (:mod:`curvefm.evaluation.reproduce.datasets`): ``full`` (12 pairs, 1-20 curves, 3 seeds) and ``ci`` (2 pairs).
 """
 
 from __future__ import annotations
@@ -22,13 +22,13 @@ from datetime import date
 from pathlib import Path
 
 from curvefm.errors import CurvefmError
-from curvefm.evaluation import shared_data_dir
+from curvefm.evaluation.ground_truth import shared_data_dir
+from curvefm.evaluation.reproduce.accuracy import run_accuracy
+from curvefm.evaluation.reproduce.datasets import DATASETS, SUITES
+from curvefm.evaluation.reproduce.plots import plot_accuracy, plot_timing, require_matplotlib
+from curvefm.evaluation.reproduce.report import check_claims, write_report
+from curvefm.evaluation.reproduce.timing import run_timing
 from curvefm.progress import Progress, no_progress
-from curvefm.reproduce.accuracy import run_accuracy
-from curvefm.reproduce.datasets import DATASETS, SUITES
-from curvefm.reproduce.plots import plot_accuracy, plot_timing, require_matplotlib
-from curvefm.reproduce.report import check_claims, write_report
-from curvefm.reproduce.timing import run_timing
 from curvefm.store import Store
 
 EXPERIMENTS = ("accuracy", "timing")

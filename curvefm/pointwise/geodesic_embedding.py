@@ -20,8 +20,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 from scipy.spatial import cKDTree
 
-from curvefm.evaluation import farthest_point_sampling, geodesic_distances
-from curvefm.mesh import Mesh
+from curvefm.geometry import Mesh, farthest_point_sampling, geodesic_distances
 
 
 def geodesic_embedding(

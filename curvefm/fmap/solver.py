@@ -7,7 +7,7 @@
 with ``PhiBar_l = P_l Phi`` (s x k) the basis of M restricted to the l-th curve's s uniform samples and
 ``PsiBar_l`` the same on N. Normalisation, so one ``alpha`` serves every pair:
 
-* bases are those of the meshes scaled to unit area (see :mod:`curvefm.basis`): invariant to mesh scale;
+* bases are those of the meshes scaled to unit area (see :mod:`curvefm.spectral.basis`): invariant to mesh scale;
 * each curve's term is a mean over its samples (1/s): invariant to samples per curve;
 * curve weights are divided by their sum ``W``: invariant to the number of curves;
 * eigenvalues are divided by ``max(lam_M[k-1], lam_N[k-1])``, so the commutativity term is O(1) for any k.
@@ -15,7 +15,7 @@ with ``PhiBar_l = P_l Phi`` (s x k) the basis of M restricted to the l-th curve'
 Because ``Lam`` is diagonal, E separates by columns: column j of C solves the k x k system
 ``(G + alpha * diag((lam^N_i - lam^M_j)^2)) c_j = B[:, j]`` with ``G = sum_l w~_l PsiBar_l^T PsiBar_l`` and
 ``B = sum_l w~_l PsiBar_l^T PhiBar_l``. Each curve keeps its own k x k products, so adding, editing or
-removing one only re-sums k x k matrices before the k small solves (:mod:`curvefm.column_solve`).
+removing one only re-sums k x k matrices before the k small solves (:mod:`curvefm.fmap.column_solve`).
 ``C_NM`` is the same problem with the roles of M and N exchanged; both are solved side by side on two threads,
 or, for an interactive server, ``C_MN`` alone on the calling thread and ``C_NM`` when first read.
 """
@@ -26,12 +26,11 @@ import itertools
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize
 
-from curvefm.basis import Basis
-from curvefm.column_solve import solve_both, solve_columns
-from curvefm.curves import DEFAULT_SAMPLES, restrict
 from curvefm.errors import CurvefmError
+from curvefm.fmap.column_solve import solve_both, solve_columns
+from curvefm.fmap.restriction import DEFAULT_SAMPLES, restrict
+from curvefm.spectral import Basis
 
 DEFAULT_ALPHA = 100.0  # chosen by the sweep in benchmarks/bench_alpha.py; see the README
 DEFAULT_K = 120
@@ -169,69 +168,3 @@ class CurveMapSolver:
         _, G_N, B = self.normal_equations()
         D = (self.lam_N[:, None] - self.lam_M[None, :]) ** 2
         return float(self.alpha * np.sum(D * C_MN**2) + np.sum(C_MN * (G_N @ C_MN)) - 2 * np.sum(C_MN * B))
-
-
-def conjugate_gradient_solve(
-    G: np.ndarray,
-    B: np.ndarray,
-    lam_rows: np.ndarray,
-    lam_cols: np.ndarray,
-    alpha: float,
-    C0: np.ndarray | None = None,
-    tol: float = 1e-8,
-    max_iter: int = 5000,
-) -> tuple[np.ndarray, int]:
-    """The paper's reference solver (its Algorithm 2): conjugate gradients on the whole k^2 system
-    ``G C + alpha * D o C = B`` (``D[i, j] = (lam_rows[i] - lam_cols[j])^2``), one step length for all
-    columns, optionally warm-started from ``C0``. Returns ``(C, iterations)``; stops when the residual's
-    Frobenius norm falls below ``tol`` times that of ``B``."""
-    D = alpha * (lam_rows[:, None] - lam_cols[None, :]) ** 2
-
-    def apply(X: np.ndarray) -> np.ndarray:
-        return G @ X + D * X
-
-    C = np.zeros_like(B) if C0 is None else C0.copy()
-    R = B - apply(C)
-    P = R.copy()
-    rr = np.sum(R * R)
-    stop = (tol * np.linalg.norm(B)) ** 2
-    for iteration in range(max_iter):
-        if rr <= stop:
-            return C, iteration
-        AP = apply(P)
-        step = rr / np.sum(P * AP)
-        C += step * P
-        R -= step * AP
-        rr_new = np.sum(R * R)
-        P = R + (rr_new / rr) * P
-        rr = rr_new
-    return C, max_iter
-
-
-def quasi_newton_solve(
-    G: np.ndarray,
-    B: np.ndarray,
-    lam_rows: np.ndarray,
-    lam_cols: np.ndarray,
-    alpha: float,
-    C0: np.ndarray | None = None,
-    tol: float = 1e-8,
-    max_iter: int = 20000,
-) -> tuple[np.ndarray, int]:
-    """The same energy minimised with scipy's L-BFGS (the paper's quasi-Newton comparison). Stops when every
-    residual entry is below ``tol * ||B|| / sqrt(size)``, which implies CG's Frobenius criterion.
-    Returns ``(C, iterations)``."""
-    D = alpha * (lam_rows[:, None] - lam_cols[None, :]) ** 2
-
-    def energy(x: np.ndarray) -> tuple[float, np.ndarray]:
-        C = x.reshape(B.shape)
-        GC = G @ C
-        return float(np.sum(C * (GC + D * C)) - 2 * np.sum(C * B)), (2 * (GC + D * C - B)).ravel()
-
-    start = np.zeros(B.size) if C0 is None else C0.ravel()
-    gtol = 2 * tol * np.linalg.norm(B) / np.sqrt(B.size)
-    result = minimize(
-        energy, start, jac=True, method="L-BFGS-B",
-        options={"maxiter": max_iter, "gtol": gtol, "ftol": 0.0, "maxcor": 20, "maxfun": 2 * max_iter},
-    )  # fmt: skip
-    return result.x.reshape(B.shape), int(result.nit)

@@ -1,11 +1,11 @@
 """Pieces shared by the refining converters (``icp``, ``zoomout``, ``rhm``).
 
 Every refiner starts from the same pointwise maps as the ``nearest-neighbor`` converter (both functional
-maps at once, :func:`curvefm.pointwise.pointwise_from_both`) and from then on works with pointwise maps
+maps at once, :func:`curvefm.pointwise.conversion.pointwise_from_both`) and from then on works with pointwise maps
 only. So the bases it uses afterwards may be larger than the ``k x k`` of ``C_MN`` and ``C_NM``, and may even
 be computed afresh (eigenvector signs do not matter once the maps are pointwise).
 
-Map directions follow :mod:`curvefm.pointwise`: ``p2p_NM[j]`` is the vertex of M for vertex j of N.
+Map directions follow :mod:`curvefm.pointwise.conversion`: ``p2p_NM[j]`` is the vertex of M for vertex j of N.
 """
 
 from __future__ import annotations
@@ -13,11 +13,10 @@ from __future__ import annotations
 import numpy as np
 
 from curvefm import registry
-from curvefm.basis import Basis
-from curvefm.evaluation import farthest_point_sampling
-from curvefm.mesh import Mesh, MeshReport
-from curvefm.pointwise import MapProblem, PointwiseMaps, pointwise_from_both
+from curvefm.geometry import Mesh, MeshReport, farthest_point_sampling
+from curvefm.pointwise.conversion import MapProblem, PointwiseMaps, pointwise_from_both
 from curvefm.progress import Progress, no_progress, scaled
+from curvefm.spectral import Basis
 
 
 def surface(vertices: np.ndarray, faces: np.ndarray) -> Mesh:

@@ -15,12 +15,12 @@ from pathlib import Path
 import numpy as np
 
 from curvefm.errors import CurvefmError
-from curvefm.evaluation import GroundTruth, evaluate_map, farthest_point_sampling, ground_truth_for
+from curvefm.evaluation.ground_truth import GroundTruth, ground_truth_for
+from curvefm.evaluation.metrics import evaluate_map
+from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K
+from curvefm.geometry import Mesh, farthest_point_sampling, load_mesh, shortest_path
 from curvefm.matching import MatchResult, match
-from curvefm.mesh import Mesh, load_mesh
-from curvefm.paths import shortest_path
 from curvefm.progress import Progress, no_progress
-from curvefm.solver import DEFAULT_ALPHA, DEFAULT_K
 from curvefm.store import Store
 
 

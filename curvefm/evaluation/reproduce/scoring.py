@@ -13,13 +13,14 @@ from pathlib import Path
 
 import numpy as np
 
-from curvefm.basis import Basis
-from curvefm.evaluation import ErrorSummary, GroundTruth, geodesic_diameter, geodesic_distances, ground_truth_for
-from curvefm.experiment import CurvePool
-from curvefm.mesh import Mesh, load_mesh
+from curvefm.evaluation.ground_truth import GroundTruth, ground_truth_for
+from curvefm.evaluation.metrics import ErrorSummary
+from curvefm.evaluation.protocol import CurvePool
+from curvefm.evaluation.reproduce.datasets import Pair
+from curvefm.geometry import Mesh, geodesic_diameter, geodesic_distances, load_mesh
 from curvefm.pointwise import pointwise_from_fmap
 from curvefm.progress import Progress, no_progress, scaled
-from curvefm.reproduce.datasets import Pair
+from curvefm.spectral import Basis
 from curvefm.store import Store
 
 MAX_ROWS = 1000

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from curvefm.basis import Basis
+from curvefm.spectral import Basis
 
 
 def transfer(C_MN: np.ndarray, basis_M: Basis, basis_N: Basis, values_M: np.ndarray) -> np.ndarray:

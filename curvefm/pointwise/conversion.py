@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from curvefm.basis import Basis
-from curvefm.neighbors import nearest_neighbors
+from curvefm.pointwise.neighbors import nearest_neighbors
+from curvefm.spectral import Basis
 
 
 @dataclass(frozen=True)

@@ -14,11 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
-from curvefm.column_solve import solve_both
+from curvefm.evaluation.reproduce.datasets import Suite
+from curvefm.evaluation.reproduce.scoring import LoadedPair
+from curvefm.fmap import DEFAULT_K, CurveMapSolver, conjugate_gradient_solve, quasi_newton_solve, solve_both
 from curvefm.progress import Progress, no_progress
-from curvefm.reproduce.datasets import Suite
-from curvefm.reproduce.scoring import LoadedPair
-from curvefm.solver import DEFAULT_K, CurveMapSolver, conjugate_gradient_solve, quasi_newton_solve
 from curvefm.store import Store
 
 SLOW_SECONDS = 1.0  # a solver slower than this is timed once instead of `repeats` times

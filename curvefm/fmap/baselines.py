@@ -22,49 +22,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from curvefm.basis import Basis
-from curvefm.column_solve import solve_columns
 from curvefm.errors import CurvefmError
-from curvefm.mesh import Mesh
-
-
-@dataclass(frozen=True)
-class MapInputs:
-    """Both shapes with their bases, and the correspondence hints (internal vertex ids).
-
-    ``curves`` are corresponding vertex paths ``(path_M, path_N)`` with their ``weights`` (empty: all 1);
-    ``landmarks`` (m x 2) are corresponding vertices, by default the curves' endpoints (what the paper gives
-    the descriptor baselines).
-    """
-
-    mesh_M: Mesh
-    mesh_N: Mesh
-    basis_M: Basis
-    basis_N: Basis
-    curves: tuple[tuple[np.ndarray, np.ndarray], ...]
-    landmarks: np.ndarray
-    weights: tuple[float, ...] = ()
-
-    @classmethod
-    def from_curves(cls, mesh_M, mesh_N, basis_M, basis_N, curves, weights=()) -> MapInputs:
-        return cls(mesh_M, mesh_N, basis_M, basis_N, tuple(curves), curve_endpoints(curves), tuple(weights))
-
-
-@dataclass(frozen=True)
-class FunctionalMaps:
-    C_MN: np.ndarray  # (k_N, k_M): coefficients on M -> coefficients on N
-    C_NM: np.ndarray  # (k_M, k_N)
-
-
-def curve_endpoints(curves) -> np.ndarray:
-    """Distinct ``(vertex on M, vertex on N)`` pairs at the ends of the curves, in order of appearance."""
-    pairs = []
-    for path_M, path_N in curves:
-        for end in (0, -1):
-            pair = (int(path_M[end]), int(path_N[end]))
-            if pair not in pairs:
-                pairs.append(pair)
-    return np.array(pairs, dtype=np.int64).reshape(-1, 2)
+from curvefm.fmap.column_solve import solve_columns
+from curvefm.spectral import Basis
 
 
 def normalised_eigenvalues(basis_M: Basis, basis_N: Basis, k: int) -> tuple[np.ndarray, np.ndarray]:

@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from curvefm.basis import Basis
 from curvefm.errors import CurvefmError
+from curvefm.spectral.basis import Basis
 
 
 def _energy_filters(evals: np.ndarray, n_energies: int, sigma: float) -> np.ndarray:

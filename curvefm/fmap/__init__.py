@@ -1,0 +1,53 @@
+"""Functional maps: curve restriction, the curve-constrained solver (column-separable exact solves), the
+paper's CG and an L-BFGS reference, the descriptor baselines' energies, and function transfer through a map.
+"""
+
+from curvefm.fmap.baselines import (
+    DescriptorEnergy,
+    check_method_k,
+    descriptor_least_squares,
+    lbfgs,
+    normalised_eigenvalues,
+)
+from curvefm.fmap.column_solve import (
+    PARALLEL_MIN_SIZE,
+    RIDGE,
+    column_diagonals,
+    column_ridge,
+    solve_both,
+    solve_columns,
+)
+from curvefm.fmap.maps import FunctionalMaps, MapInputs, curve_endpoints
+from curvefm.fmap.reference_solvers import conjugate_gradient_solve, quasi_newton_solve
+from curvefm.fmap.restriction import DEFAULT_SAMPLES, resample, restrict, restriction_operator
+from curvefm.fmap.solver import DEFAULT_ALPHA, DEFAULT_K, CurveMapSolver, CurveTerm
+from curvefm.fmap.transfer import FunctionTransfer, transfer
+
+__all__ = [
+    "CurveMapSolver",
+    "CurveTerm",
+    "DEFAULT_ALPHA",
+    "DEFAULT_K",
+    "DEFAULT_SAMPLES",
+    "DescriptorEnergy",
+    "FunctionTransfer",
+    "FunctionalMaps",
+    "MapInputs",
+    "PARALLEL_MIN_SIZE",
+    "RIDGE",
+    "check_method_k",
+    "column_diagonals",
+    "column_ridge",
+    "conjugate_gradient_solve",
+    "curve_endpoints",
+    "descriptor_least_squares",
+    "lbfgs",
+    "normalised_eigenvalues",
+    "quasi_newton_solve",
+    "resample",
+    "restrict",
+    "restriction_operator",
+    "solve_both",
+    "solve_columns",
+    "transfer",
+]

@@ -1,0 +1,48 @@
+"""Triangle meshes and what is computed on their surface alone: the :class:`Mesh` type (internal and file
+vertex ids), validation, one reader/writer per file format, Laplace-Beltrami operators, graph paths,
+geodesic distances, farthest-point sampling and texture coordinates.
+"""
+
+from curvefm.geometry.geodesics import (
+    DEFAULT_CHUNK_BYTES,
+    checked_ids,
+    geodesic_diameter,
+    geodesic_distances,
+    geodesic_graph,
+    pair_geodesic_distances,
+)
+from curvefm.geometry.graph_paths import check_edge_path, shortest_path
+from curvefm.geometry.laplacian import cotangent_laplacian, robust_laplacian
+from curvefm.geometry.mesh import Mesh, MeshReport, edge_keys, edge_weight_graph
+from curvefm.geometry.mesh_io import GLTF_FORMATS, OPEN3D_FORMATS, SUPPORTED_FORMATS, load_mesh, save_mesh
+from curvefm.geometry.sampling import farthest_point_sampling
+from curvefm.geometry.texture import cylindrical_uv, texture_coordinates
+from curvefm.geometry.validation import build_mesh, max_vertices, per_vertex_uv
+
+__all__ = [
+    "DEFAULT_CHUNK_BYTES",
+    "GLTF_FORMATS",
+    "Mesh",
+    "MeshReport",
+    "OPEN3D_FORMATS",
+    "SUPPORTED_FORMATS",
+    "build_mesh",
+    "check_edge_path",
+    "checked_ids",
+    "cotangent_laplacian",
+    "cylindrical_uv",
+    "edge_keys",
+    "edge_weight_graph",
+    "farthest_point_sampling",
+    "geodesic_diameter",
+    "geodesic_distances",
+    "geodesic_graph",
+    "load_mesh",
+    "max_vertices",
+    "pair_geodesic_distances",
+    "per_vertex_uv",
+    "robust_laplacian",
+    "save_mesh",
+    "shortest_path",
+    "texture_coordinates",
+]

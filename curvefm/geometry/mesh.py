@@ -1,0 +1,130 @@
+"""Triangle meshes: loading, saving, validation and identity.
+
+Index convention: a :class:`Mesh` works with *internal* vertex ids ``0..n-1``. When a file has vertices that
+no face uses, they are dropped; ``file_ids[i]`` is the id in the file of internal vertex ``i`` and
+:meth:`Mesh.internal_ids` translates the other way, so ids a user read off the file stay valid.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import asdict, dataclass, field
+from functools import cached_property
+
+import numpy as np
+import scipy.sparse as sp
+
+from curvefm.errors import CurvefmError
+
+
+@dataclass
+class MeshReport:
+    """What validation changed or noticed. Changes keep user ids valid; notes are not fatal."""
+
+    triangulated_polygons: int = 0
+    degenerate_faces_removed: int = 0
+    unreferenced_vertices_removed: int = 0
+    non_manifold_edges: int = 0
+    boundary_edges: int = 0
+    components: int = 1
+    warnings: list[str] = field(default_factory=list)
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(frozen=True, eq=False)
+class Mesh:
+    vertices: np.ndarray  # (n, 3) float64
+    faces: np.ndarray  # (f, 3) int64, internal ids
+    file_ids: np.ndarray  # (n,) int64: id in the source file of each internal vertex
+    n_file_vertices: int
+    report: MeshReport
+    uv: np.ndarray | None = None  # (n, 2) per-vertex texture coordinates, if the file had them
+    texture_path: str | None = None  # texture image named by the file's material, if any
+    name: str = ""
+
+    @property
+    def n_vertices(self) -> int:
+        return len(self.vertices)
+
+    @cached_property
+    def content_hash(self) -> str:
+        """Identity of the geometry, connectivity, uv and id map: equal meshes hash equal in any format."""
+        h = hashlib.sha256()
+        for array in (self.vertices, self.faces, self.file_ids, self.uv):
+            if array is not None:
+                h.update(np.ascontiguousarray(array).tobytes())
+            h.update(b"|")
+        return h.hexdigest()[:32]
+
+    @cached_property
+    def edges(self) -> np.ndarray:
+        """Unique undirected edges (E, 2), smaller id first."""
+        keys, _ = edge_keys(self.faces, self.n_vertices)
+        return np.column_stack(np.divmod(np.unique(keys), self.n_vertices))
+
+    @cached_property
+    def edge_lengths(self) -> np.ndarray:
+        return np.linalg.norm(self.vertices[self.edges[:, 0]] - self.vertices[self.edges[:, 1]], axis=1)
+
+    @cached_property
+    def face_areas(self) -> np.ndarray:
+        v = self.vertices[self.faces]
+        return 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
+
+    @property
+    def area(self) -> float:
+        return float(self.face_areas.sum())
+
+    @cached_property
+    def edge_graph(self) -> sp.csr_matrix:
+        """Symmetric sparse adjacency weighted by Euclidean edge length."""
+        return edge_weight_graph(self.n_vertices, self.edges, self.edge_lengths)
+
+    def internal_ids(self, ids, what: str = "vertex id") -> np.ndarray:
+        """Translate file vertex ids to internal ids, with a clear error for bad ones."""
+        ids = np.asarray(ids)
+        if ids.size and not np.issubdtype(ids.dtype, np.integer):
+            if not np.all(np.mod(ids, 1) == 0):
+                raise CurvefmError(f"{what}s must be integers, got {ids.tolist()}")
+            ids = ids.astype(np.int64)
+        ids = ids.astype(np.int64)
+        bad = (ids < 0) | (ids >= self.n_file_vertices)
+        if bad.any():
+            raise CurvefmError(
+                f"{what} {int(ids[bad][0])} is out of range: mesh '{self.name}' has "
+                f"{self.n_file_vertices} vertices (ids are 0-based, 0..{self.n_file_vertices - 1})"
+            )
+        lookup = self._file_to_internal
+        out = lookup[ids]
+        if (out < 0).any():
+            raise CurvefmError(
+                f"{what} {int(ids[out < 0][0])} of mesh '{self.name}' belongs to no face (it was dropped as "
+                "unreferenced); pick a vertex on the surface"
+            )
+        return out
+
+    @cached_property
+    def _file_to_internal(self) -> np.ndarray:
+        lookup = np.full(self.n_file_vertices, -1, dtype=np.int64)
+        lookup[self.file_ids] = np.arange(self.n_vertices)
+        return lookup
+
+    def per_file_vertex(self, values: np.ndarray, fill) -> np.ndarray:
+        """Spread per-internal-vertex values to per-file-vertex rows (dropped vertices get ``fill``)."""
+        out = np.full((self.n_file_vertices,) + values.shape[1:], fill, dtype=values.dtype)
+        out[self.file_ids] = values
+        return out
+
+
+def edge_keys(faces: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """One int64 key ``min * n + max`` per face-edge (3 per face), and the counts of each unique key."""
+    e = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    keys = e[:, 0] * n + e[:, 1]
+    return keys, np.unique(keys, return_counts=True)[1]
+
+
+def edge_weight_graph(n: int, edges: np.ndarray, weights: np.ndarray) -> sp.csr_matrix:
+    i, j = edges[:, 0], edges[:, 1]
+    return sp.csr_matrix((np.r_[weights, weights], (np.r_[i, j], np.r_[j, i])), shape=(n, n))

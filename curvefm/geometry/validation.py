@@ -1,0 +1,160 @@
+"""Building a :class:`Mesh` from raw arrays: every check a file or an upload must pass.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+from scipy.sparse.csgraph import connected_components
+
+from curvefm.errors import CurvefmError
+from curvefm.geometry.mesh import Mesh, MeshReport, edge_keys
+
+
+def max_vertices() -> int:
+    """Largest accepted vertex count (``CURVEFM_MAX_VERTICES``, default two million)."""
+    return int(os.environ.get("CURVEFM_MAX_VERTICES", 2_000_000))
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Building and validating
+
+
+def build_mesh(vertices, faces, uv=None, *, name: str = "", texture_path: str | None = None) -> Mesh:
+    """Validate raw arrays and build a :class:`Mesh`.
+
+    ``faces`` may be an (f, 3) array or a list of polygons; polygons with more than three corners are
+    triangulated as fans (counted in the report). Faces with fewer than three corners, indices out of range,
+    non-finite coordinates and empty meshes are rejected. Degenerate faces (a repeated corner or zero area)
+    are removed, then vertices no face uses are dropped with their ids remembered in ``file_ids``.
+    Non-manifold edges, boundaries and several components are reported, not fatal.
+    """
+    report = MeshReport()
+    vertices = _checked_vertices(vertices, name)
+    n_file = len(vertices)
+    tris = _triangulate(faces, report, name)
+    _check_indices(tris, n_file, name)
+    tris = _drop_degenerate(vertices, tris, report, name)
+    used = np.unique(tris)
+    file_ids = used.astype(np.int64)
+    if len(used) < n_file:
+        report.unreferenced_vertices_removed = n_file - len(used)
+        report.warnings.append(
+            f"{n_file - len(used)} vertices belong to no face and were dropped; file ids stay valid"
+        )
+        remap = np.full(n_file, -1, dtype=np.int64)
+        remap[used] = np.arange(len(used))
+        tris = remap[tris]
+    if uv is not None:
+        uv = np.asarray(uv, dtype=np.float64)[file_ids]
+    mesh = Mesh(
+        vertices=np.ascontiguousarray(vertices[file_ids]),
+        faces=np.ascontiguousarray(tris, dtype=np.int64),
+        file_ids=file_ids,
+        n_file_vertices=n_file,
+        report=report,
+        uv=uv,
+        texture_path=texture_path,
+        name=name,
+    )
+    _note_topology(mesh, report)
+    return mesh
+
+
+def _checked_vertices(vertices, name: str) -> np.ndarray:
+    try:
+        v = np.asarray(vertices, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise CurvefmError(f"mesh '{name}': vertex coordinates are not numbers ({exc})") from None
+    if v.size == 0:
+        raise CurvefmError(f"mesh '{name}' is empty: it has no vertices")
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise CurvefmError(f"mesh '{name}': vertices must be an (n, 3) array, got shape {v.shape}")
+    if len(v) > max_vertices():
+        raise CurvefmError(
+            f"mesh '{name}' has {len(v)} vertices, more than the limit of {max_vertices()} "
+            "(set CURVEFM_MAX_VERTICES to change it, or decimate the mesh)",
+            kind="too_large",
+        )
+    bad = ~np.isfinite(v).all(axis=1)
+    if bad.any():
+        raise CurvefmError(
+            f"mesh '{name}' has {int(bad.sum())} vertices with non-finite coordinates (NaN or inf), "
+            f"the first is vertex {int(np.flatnonzero(bad)[0])}"
+        )
+    return v
+
+
+def _triangulate(faces, report: MeshReport, name: str) -> np.ndarray:
+    if not isinstance(faces, np.ndarray) and faces is not None and all(len(f) == 3 for f in faces):
+        faces = np.array(faces, dtype=np.int64).reshape(-1, 3)
+    if isinstance(faces, np.ndarray) and faces.ndim == 2 and faces.shape[1] == 3:
+        tris = faces
+    else:
+        faces = list(faces) if faces is not None else []
+        tris_list = []
+        for index, poly in enumerate(faces):
+            poly = list(poly)
+            if len(poly) < 3:
+                raise CurvefmError(
+                    f"mesh '{name}': face {index} has {len(poly)} corners; faces need at least 3 "
+                    "(lines and points are not surfaces)"
+                )
+            if len(poly) > 3:
+                report.triangulated_polygons += 1
+            tris_list.extend([poly[0], poly[i], poly[i + 1]] for i in range(1, len(poly) - 1))
+        tris = np.array(tris_list).reshape(-1, 3)
+    if len(tris) == 0:
+        raise CurvefmError(f"mesh '{name}' has no faces; only triangle (or polygon) meshes are supported")
+    if not np.issubdtype(np.asarray(tris).dtype, np.integer):
+        raise CurvefmError(f"mesh '{name}': face indices must be integers")
+    if report.triangulated_polygons:
+        report.warnings.append(f"{report.triangulated_polygons} polygons were triangulated as fans")
+    return np.asarray(tris, dtype=np.int64)
+
+
+def _check_indices(tris: np.ndarray, n: int, name: str) -> None:
+    bad = (tris < 0) | (tris >= n)
+    if bad.any():
+        face = int(np.flatnonzero(bad.any(axis=1))[0])
+        raise CurvefmError(
+            f"mesh '{name}': face {face} refers to vertex {int(tris[bad][0])}, but the mesh has {n} vertices "
+            f"(valid ids are 0..{n - 1})"
+        )
+
+
+def _drop_degenerate(vertices: np.ndarray, tris: np.ndarray, report: MeshReport, name: str) -> np.ndarray:
+    repeated = (tris[:, 0] == tris[:, 1]) | (tris[:, 1] == tris[:, 2]) | (tris[:, 0] == tris[:, 2])
+    p = vertices[tris]
+    doubled_area = np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+    scale = np.ptp(vertices, axis=0).max() if len(vertices) > 1 else 1.0
+    flat = doubled_area <= 1e-14 * max(scale, 1e-300) ** 2
+    degenerate = repeated | flat
+    if degenerate.all():
+        raise CurvefmError(f"mesh '{name}': all {len(tris)} faces are degenerate (zero area)")
+    if degenerate.any():
+        report.degenerate_faces_removed = int(degenerate.sum())
+        report.warnings.append(f"{int(degenerate.sum())} degenerate faces (zero area) were removed")
+    return tris[~degenerate]
+
+
+def _note_topology(mesh: Mesh, report: MeshReport) -> None:
+    _, counts = edge_keys(mesh.faces, mesh.n_vertices)
+    report.non_manifold_edges = int((counts > 2).sum())
+    report.boundary_edges = int((counts == 1).sum())
+    report.components = int(connected_components(mesh.edge_graph, directed=False)[0])
+    if report.non_manifold_edges:
+        report.warnings.append(f"{report.non_manifold_edges} non-manifold edges (shared by 3+ faces)")
+    if report.components > 1:
+        report.warnings.append(
+            f"{report.components} connected components: curves cannot cross between components"
+        )
+
+
+def per_vertex_uv(faces: np.ndarray, corner_uv: np.ndarray, n: int) -> np.ndarray:
+    """One uv per vertex from per-corner uvs; at a seam the first corner's value wins."""
+    uv = np.full((n, 2), np.nan)
+    flat_ids = faces.reshape(-1)[::-1]
+    uv[flat_ids] = corner_uv.reshape(-1, 2)[::-1]  # reversed so the first occurrence is written last
+    return np.nan_to_num(uv)

@@ -1,0 +1,90 @@
+"""Curve specs as users give them (file vertex ids) and tracing them into vertex paths.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from curvefm import registry
+from curvefm.errors import CurvefmError
+from curvefm.geometry import Mesh, check_edge_path
+
+
+class CurveSpec(BaseModel):
+    """One pair of corresponding curves, in file vertex ids (0-based).
+
+    ``source`` and ``target`` are endpoints or waypoints joined by the tracer, or, with ``explicit``, whole
+    edge-connected vertex paths.
+    """
+
+    model_config = ConfigDict(extra="forbid")
+    source: list[int] = Field(min_length=1)
+    target: list[int] = Field(min_length=1)
+    explicit: bool = False
+    tracer: str | None = None
+    tracer_params: dict = Field(default_factory=dict)
+    weight: float = Field(1.0, gt=0)
+
+
+class CurvesFile(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    curves: list[CurveSpec]
+
+
+def read_curves(path: str | Path) -> list[CurveSpec]:
+    try:
+        return CurvesFile.model_validate(json.loads(Path(path).read_text())).curves
+    except FileNotFoundError:
+        raise CurvefmError(f"curves file not found: {path}", kind="not_found") from None
+    except json.JSONDecodeError as exc:
+        raise CurvefmError(f"curves file {path} is not valid JSON: {exc}") from None
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        where = ".".join(str(p) for p in first["loc"])
+        raise CurvefmError(f"curves file {path}: {where}: {first['msg']}") from None
+
+
+def trace_curve(
+    mesh: Mesh,
+    waypoints: Sequence[int] | None = None,
+    path: Sequence[int] | None = None,
+    tracer: str = "geodesic",
+    params: dict | None = None,
+) -> np.ndarray:
+    """Return a vertex path (internal ids) from user input in **file** ids.
+
+    Give either ``waypoints`` (two endpoints, or more points the curve must pass in order; consecutive
+    points are joined by the tracer) or an explicit ``path`` (checked to be edge-connected).
+    """
+    if (waypoints is None) == (path is None):
+        raise CurvefmError("give a curve either as waypoints (endpoints) or as an explicit vertex path")
+    if path is not None:
+        internal = mesh.internal_ids(path, "path vertex")
+        check_edge_path(mesh.edge_graph, internal)
+        return internal
+    points = mesh.internal_ids(waypoints, "waypoint")
+    if len(points) < 2:
+        raise CurvefmError(f"a curve needs at least two waypoints (start and end), got {len(points)}")
+    plugin = registry.get("tracer", tracer)
+    parsed = plugin.parse_params(params)
+    pieces = [plugin.run(mesh, int(a), int(b), parsed) for a, b in zip(points[:-1], points[1:], strict=True)]
+    traced = np.concatenate([pieces[0]] + [p[1:] for p in pieces[1:]])
+    if len(traced) < 2:
+        raise CurvefmError("the curve's start and end are the same vertex; pick two different points")
+    return traced
+
+
+def trace_pair(mesh_M: Mesh, mesh_N: Mesh, spec: CurveSpec, default_tracer: str) -> tuple[np.ndarray, np.ndarray]:
+    tracer = spec.tracer or default_tracer
+    paths = []
+    for mesh, ids in ((mesh_M, spec.source), (mesh_N, spec.target)):
+        if spec.explicit:
+            paths.append(trace_curve(mesh, path=ids))
+        else:
+            paths.append(trace_curve(mesh, waypoints=ids, tracer=tracer, params=spec.tracer_params))
+    return paths[0], paths[1]
