@@ -9,6 +9,7 @@ from common import bench_store, machine, shared_data
 from curvefm.evaluation import ground_truth_curves, ground_truth_for, score
 from curvefm.geometry import load_mesh
 from curvefm.matching import match
+from curvefm.runtime import limit_blas_threads
 
 PAIRS = [
     ("faust/tr_reg_000.off", "faust/tr_reg_011.off"),
@@ -38,4 +39,5 @@ def main():
 
 
 if __name__ == "__main__":
+    limit_blas_threads()
     main()

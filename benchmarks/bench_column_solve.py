@@ -36,6 +36,7 @@ from scipy.linalg import lapack  # noqa: E402
 from curvefm.fmap import column_diagonals, restrict, solve_both, solve_columns
 from curvefm.geometry import load_mesh, shortest_path
 from curvefm.registry import get  # noqa: E402
+from curvefm.runtime import limit_blas_threads
 
 CACHE = Path("/tmp/curvefm-bench-columns")
 SAMPLES = 100
@@ -167,4 +168,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
+    limit_blas_threads()
     main()

@@ -24,6 +24,7 @@ from curvefm.evaluation import evaluate_map, ground_truth_curves, ground_truth_f
 from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K, DEFAULT_SAMPLES
 from curvefm.geometry import load_mesh
 from curvefm.matching import MatchResult, match
+from curvefm.runtime import limit_blas_threads
 from curvefm.session import CurveRecord, CurveSpec, SessionRecord
 from curvefm.store import Store
 from curvefm.workers.queue import EmbeddedQueue
@@ -136,4 +137,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
+    limit_blas_threads()
     main()

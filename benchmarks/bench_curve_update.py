@@ -13,6 +13,7 @@ from common import bench_store, machine, median_ms, shared_data
 
 from curvefm.fmap import CurveMapSolver, FunctionTransfer, conjugate_gradient_solve
 from curvefm.geometry import farthest_point_sampling, load_mesh, shortest_path
+from curvefm.runtime import limit_blas_threads
 
 REPEAT = 31
 
@@ -85,4 +86,5 @@ def main():
 
 
 if __name__ == "__main__":
+    limit_blas_threads()
     main()

@@ -27,6 +27,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import eigsh
 
 from curvefm.geometry import cotangent_laplacian, load_mesh
+from curvefm.runtime import limit_blas_threads
 from curvefm.spectral import smallest_eigenpairs
 
 DATA = Path(os.environ.get("CURVEFM_SHARED_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
@@ -94,4 +95,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
+    limit_blas_threads()
     main()

@@ -27,6 +27,7 @@ from curvefm.geometry import load_mesh
 from curvefm.matching import match
 from curvefm.plugins.rhm import RhmParams, prepare_shape
 from curvefm.pointwise import fmap_from_pointwise, nearest_neighbors
+from curvefm.runtime import limit_blas_threads
 
 # Above this many seconds (estimated from a first subset), the tree answers only a subset of the queries.
 TREE_FULL_LIMIT_S = 20.0
@@ -100,4 +101,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
+    limit_blas_threads()
     main()

@@ -22,6 +22,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from curvefm.geometry import load_mesh
 from curvefm.plugins import tracers
+from curvefm.runtime import limit_blas_threads
 
 DEFAULT_MESH = Path(__file__).resolve().parents[2] / "shared" / "data" / "tosca" / "cat0.off"
 
@@ -97,4 +98,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
+    limit_blas_threads()
     main()

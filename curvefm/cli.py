@@ -12,6 +12,7 @@ import sys
 
 from curvefm.errors import CurvefmError
 from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K
+from curvefm.runtime import limit_blas_threads
 
 
 def progress_bar(description: str):
@@ -193,6 +194,7 @@ def parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
+    limit_blas_threads()
     try:
         return args.run(args)
     except CurvefmError as exc:

@@ -3,7 +3,7 @@ between Discrete Surfaces", ACM TOG 38(2), 2019; arXiv 2018).
 
 Formulation followed: the paper's, with the weights and schedule of the authors' code as carried by the
 public Python port (RobinMagnet/ReversibleHarmonicMaps, ``rhm_refine``). Both meshes are scaled to unit area
-and embedded in R^dim by geodesic MDS (:mod:`curvefm.pointwise.geodesic_embedding`): X_M (m x dim),
+and embedded in R^dim by geodesic MDS (:mod:`curvefm.pointwise.geodesic_mds`): X_M (m x dim),
 X_N (n x dim). The unknowns are the maps P_MN, P_NM (rows: a vertex or a point on a triangle of the other
 mesh) and the continuous images X_MN ~ P_MN X_N, X_NM ~ P_NM X_M. The energy, summed over both directions, is::
 

@@ -12,7 +12,10 @@ from pathlib import Path
 import httpx
 import pytest
 
+from curvefm.runtime import limit_blas_threads
+
 REPO = Path(__file__).resolve().parents[1]
+limit_blas_threads()  # as the CLI does: the solver threads, not BLAS, use the cores
 
 
 def shared_data_path() -> Path:

@@ -33,8 +33,6 @@ diameter; on FAUST tr_reg_001, TOSCA wolf0 and pyFM cat-00 it equals the maximum
 
 from __future__ import annotations
 
-import weakref
-
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
@@ -44,16 +42,6 @@ from curvefm.geometry.mesh import Mesh
 
 # Bytes of Dijkstra output (chunk of sources x n float64) held at once.
 DEFAULT_CHUNK_BYTES = 64 * 2**20
-
-_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
-def _cache(mesh: Mesh) -> dict:
-    try:
-        return _CACHE.setdefault(mesh, {})
-    except TypeError:  # not weak-referenceable: no caching
-        return {}
-
 
 # ----------------------------------------------------------------------------------------------------------
 # Geodesic graph, distances, diameter
@@ -70,7 +58,7 @@ def geodesic_graph(mesh: Mesh, diagonals: bool = True) -> sp.csr_matrix:
     weight is the length of a path on the surface, so graph distances never underestimate polyhedral
     geodesics. The graph is cached per mesh object.
     """
-    cache = _cache(mesh)
+    cache = mesh.derived
     key = ("graph", bool(diagonals))
     if key in cache:
         return cache[key]
@@ -143,7 +131,7 @@ def geodesic_diameter(mesh: Mesh, *, diagonals: bool = True, max_sweeps: int = 6
     of the graph diameter, exact on most shapes. On a mesh with several components it is the diameter of
     the component of the starting vertex.
     """
-    cache = _cache(mesh)
+    cache = mesh.derived
     key = ("diameter", bool(diagonals))
     if key in cache:
         return cache[key]

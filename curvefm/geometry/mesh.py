@@ -43,6 +43,9 @@ class Mesh:
     uv: np.ndarray | None = None  # (n, 2) per-vertex texture coordinates, if the file had them
     texture_path: str | None = None  # texture image named by the file's material, if any
     name: str = ""
+    derived: dict = field(default_factory=dict, init=False, repr=False)
+    """Cache of quantities computed from the mesh by other modules (geodesic graphs, the diameter): a mesh
+    never changes, so what is derived from it lives and dies with it."""
 
     @property
     def n_vertices(self) -> int:

@@ -9,7 +9,7 @@ from curvefm.pointwise.conversion import (
     pointwise_from_both,
     pointwise_from_fmap,
 )
-from curvefm.pointwise.geodesic_embedding import (
+from curvefm.pointwise.geodesic_mds import (
     biharmonic_extension,
     classical_mds,
     closest_on_triangles,
