@@ -1,4 +1,8 @@
-// Curves: the clicks of the curve being entered, the list of the session's curves, and undo.
+// Curves as drawn: tubes on both viewports, the list in the Curves panel, the markers of the curve being clicked
+// and the hint that says what to click next.
+import { pendingEmpty, state } from "../store.js";
+import { $ } from "./dom.js";
+import { SIDES, viewports } from "./viewports.js";
 
 const PALETTE = [
   "#e6194b", "#1f78ff", "#2ca02c", "#ff7f0e", "#9b30ff", "#00a6a6", "#d62fb4", "#8c564b", "#bcbd22", "#111111",
@@ -10,105 +14,28 @@ export function curveColor(curveId) {
   return PALETTE[(number - 1) % PALETTE.length];
 }
 
-/**
- * The clicks of a curve pair being entered, in internal vertex ids per side ("source", "target"). A plain
- * click adds a point, and a plain click after the first ends that side; Shift+click adds a waypoint and goes
- * on. Clicking a side that is already complete starts it over. Sides may be entered in either order.
- */
-export class PendingCurve {
-  constructor() {
-    this.clear();
+/** The session's curves: tubes on both shapes (the selected one thicker), the list, and the buttons that need
+ * curves or edits. */
+export function showCurves() {
+  const { curves } = state.session;
+  for (const side of SIDES) {
+    const { mesh } = state.shapes[side];
+    viewports[side].setCurves(
+      curves.map((curve) => ({
+        key: `${curve.id}:${curve.tracer}:${curve[`path_${side}`].length}`,
+        color: curveColor(curve.id),
+        path: curve[`path_${side}`].map((id) => mesh.fileToInternal[id]),
+        emphasis: curve.id === state.selected,
+      })),
+    );
   }
-
-  clear() {
-    this.points = { source: [], target: [] };
-    this.closed = { source: false, target: false };
-  }
-
-  click(side, vertex, waypoint) {
-    if (this.closed[side]) {
-      this.points[side] = [];
-      this.closed[side] = false;
-    }
-    this.points[side].push(vertex);
-    if (!waypoint && this.points[side].length >= 2) this.closed[side] = true;
-  }
-
-  get complete() {
-    return this.closed.source && this.closed.target;
-  }
-
-  get empty() {
-    return this.points.source.length === 0 && this.points.target.length === 0;
-  }
-
-  /** What to do next, for the hint line. */
-  hint() {
-    for (const side of ["source", "target"]) {
-      const count = this.points[side].length;
-      if (this.closed[side]) continue;
-      if (count === 0 && this.empty) {
-        return "Click the start of a curve on the source (then its end), then on the target.";
-      }
-      if (count === 0) return `Now click the start on the ${side}, then its end.`;
-      return `Click the end on the ${side}; Shift+click adds a waypoint (${count} so far).`;
-    }
-    return "";
-  }
+  renderCurveList($("curve-list"), curves, state.selected);
+  $("undo-button").disabled = state.history.length === 0;
+  $("refine-button").disabled = curves.length === 0;
 }
 
-/**
- * Edits that can be undone, newest last. ``undo(ops)`` reverses the newest through
- * ``ops = { add(spec), remove(curveId), replace(curveId, spec) }`` (each resolves to the service's edit).
- */
-export class History {
-  constructor() {
-    this.entries = [];
-  }
-
-  get size() {
-    return this.entries.length;
-  }
-
-  clear() {
-    this.entries = [];
-  }
-
-  added(curve) {
-    this.entries.push({ kind: "add", curveId: curve.id });
-  }
-
-  removed(curve) {
-    this.entries.push({ kind: "remove", curveId: curve.id, spec: curve.spec });
-  }
-
-  replaced(previous) {
-    this.entries.push({ kind: "replace", curveId: previous.id, spec: previous.spec });
-  }
-
-  /** Reverse the newest edit and resolve to the service's answer. When the service refuses, the entry
-   * stays, so it can be tried again. A re-added curve gets a new id; older entries follow it. */
-  async undo(ops) {
-    const entry = this.entries.at(-1);
-    let edit;
-    if (entry.kind === "add") {
-      edit = await ops.remove(entry.curveId);
-    } else if (entry.kind === "remove") {
-      edit = await ops.add(entry.spec);
-      for (const older of this.entries) if (older.curveId === entry.curveId) older.curveId = edit.curve.id;
-    } else {
-      edit = await ops.replace(entry.curveId, entry.spec);
-    }
-    this.entries.pop();
-    return edit;
-  }
-}
-
-/**
- * The list of curves: colour, id, tracer, path lengths, and buttons. ``actions``: select(id),
- * retrace(id, clickTime), remove(id, clickTime). The selected curve is drawn thicker in the viewports.
- */
-export function renderCurveList(list, curves, selectedId, actions) {
+/** The list of curves: colour, id, tracer, path lengths, and buttons (data-action retrace, delete). */
+function renderCurveList(list, curves, selectedId) {
   list.replaceChildren(
     ...curves.map((curve) => {
       const item = document.createElement("li");
@@ -125,12 +52,6 @@ export function renderCurveList(list, curves, selectedId, actions) {
       label.textContent = `${curve.id} · ${curve.tracer} · ${curve.path_source.length}/${curve.path_target.length} v`;
       const retrace = button("↻", "re-trace with the tracer chosen above", "retrace");
       item.append(swatch, label, retrace, button("✕", "delete", "delete"));
-      item.addEventListener("click", (event) => {
-        const action = event.target.closest("button")?.dataset.action;
-        if (action === "retrace") actions.retrace(curve.id, event.timeStamp);
-        else if (action === "delete") actions.remove(curve.id, event.timeStamp);
-        else actions.select(curve.id === selectedId ? null : curve.id);
-      });
       return item;
     }),
   );
@@ -145,4 +66,32 @@ function button(text, title, action) {
   element.setAttribute("aria-label", title);
   element.dataset.action = action;
   return element;
+}
+
+/** Markers of the clicks so far (redrawing only the given sides), the hint, the cancel button. */
+export function showPending(sides = SIDES) {
+  const color = curveColor(`c${state.session?.next_curve ?? 1}`);
+  for (const side of sides) viewports[side].setMarkers(state.pending.points[side].map((vertex) => ({ vertex, color })));
+  $("hint").textContent = state.pickingRegion ? "Click the source to choose the region." : pendingHint();
+  $("cancel-pending").disabled = pendingEmpty();
+}
+
+/** The hint while a finished curve is being traced (showPending replaces it). */
+export function showTracing() {
+  $("hint").textContent = "Tracing…";
+}
+
+/** What to click next. */
+function pendingHint() {
+  const { points, closed } = state.pending;
+  for (const side of SIDES) {
+    const count = points[side].length;
+    if (closed[side]) continue;
+    if (count === 0 && pendingEmpty()) {
+      return "Click the start of a curve on the source (then its end), then on the target.";
+    }
+    if (count === 0) return `Now click the start on the ${side}, then its end.`;
+    return `Click the end on the ${side}; Shift+click adds a waypoint (${count} so far).`;
+  }
+  return "";
 }
