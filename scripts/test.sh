@@ -9,4 +9,5 @@ if ! redis-cli -h 127.0.0.1 -p 6379 ping >/dev/null 2>&1; then
   for _ in $(seq 50); do redis-cli -h 127.0.0.1 -p 6379 ping >/dev/null 2>&1 && break; sleep 0.1; done
 fi
 python3 -m ruff check .
+npx --no-install eslint --max-warnings 0 service/static
 python3 -m pytest -q "$@"

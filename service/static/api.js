@@ -1,5 +1,7 @@
 // The curvefm HTTP API: JSON in and out, binary payloads as ArrayBuffer, every failure as an ApiError.
-// Vertex ids in JSON are file ids; binary payloads (mesh, transfer) follow internal vertex order.
+// Vertex ids in JSON are file ids; binary payloads (mesh, transfer) follow internal vertex order. Whether the
+// service can be reached goes to the store (state.connected) with every request.
+import { setConnected } from "./store.js";
 
 export class ApiError extends Error {
   /** kind: the service's error kind (invalid, not_found, conflict, too_large) or "network". */
@@ -8,20 +10,6 @@ export class ApiError extends Error {
     this.status = status;
     this.kind = kind;
   }
-}
-
-const connectionListeners = new Set();
-let connected = true;
-
-/** listener(connected: boolean) runs when requests start failing to reach the service, or reach it again. */
-export function onConnectionChange(listener) {
-  connectionListeners.add(listener);
-}
-
-function setConnected(value) {
-  if (value === connected) return;
-  connected = value;
-  for (const listener of connectionListeners) listener(value);
 }
 
 async function request(method, path, { json, body, as = "json" } = {}) {

@@ -2,7 +2,7 @@
 // nearest vertex of the hit face, traced curves as tubes, and per-vertex uv / colours updated in place.
 import * as THREE from "three";
 import { OrbitControls } from "three/addons/controls/OrbitControls.js";
-import { bounds } from "./functions.js";
+import { bounds } from "../functions.js";
 
 const CLICK_SLOP_PX = 5; // a press that moves further is an orbit/pan, not a click
 const AXES = { x: new THREE.Vector3(1, 0, 0), y: new THREE.Vector3(0, 1, 0), z: new THREE.Vector3(0, 0, 1) };
@@ -18,45 +18,6 @@ const SOFTWARE_RENDERER = (() => {
   return /swiftshader|llvmpipe|softpipe|software/i.test(name);
 })();
 
-// -- frames: one animation frame draws every viewport that changed -------------------------------------------
-const dirty = new Set();
-let frameRequested = false;
-let awaited = 0; // draws someone waits for: other viewports hold off until those pixels exist
-
-function requestFrame(viewport) {
-  dirty.add(viewport);
-  scheduleFrame();
-}
-
-function scheduleFrame() {
-  if (frameRequested || awaited > 0 || dirty.size === 0) return;
-  frameRequested = true;
-  requestAnimationFrame(drawFrame);
-}
-
-function drawFrame() {
-  frameRequested = false;
-  if (awaited > 0) return; // drawn() schedules the frame again once its pixels exist
-  for (const viewport of dirty) viewport.draw();
-  dirty.clear();
-}
-
-/** Draw ``viewport`` now, not at the next animation frame (up to 16 ms away: the browser shows a canvas drawn
- * between frames at the next one anyway); resolves with performance.now() once its pixels exist (not merely
- * once the commands were issued: the renderer may run in another process, or on the CPU). Until then the
- * other viewports wait, so that a software renderer works on the awaited pixels first. */
-export async function drawn(viewport) {
-  awaited += 1;
-  dirty.delete(viewport);
-  viewport.draw();
-  try {
-    return await viewport.pixelsDone();
-  } finally {
-    awaited -= 1;
-    scheduleFrame();
-  }
-}
-
 /** The view of a shape: which of its axes points up and which towards the viewer. ``up = "auto"``: z, as in
  * TOSCA and most scanned data, unless the shape is thinnest along z (then y, the graphics convention of FAUST
  * and SMPL-like bodies). The viewer looks along the thinnest remaining axis, so the shape shows its broad side. */
@@ -70,8 +31,9 @@ export function chooseAxes(vertices, up) {
 }
 
 export class Viewport {
-  /** element: a figure with a .canvas-box child. onPick(internalVertex, pointerEvent) on a click on the mesh. */
-  constructor(element, onPick) {
+  /** element: a figure with a .canvas-box child; frames: the FrameLoop that draws it (see frames.js). */
+  constructor(element, frames) {
+    this.frames = frames;
     this.box = element.querySelector(".canvas-box");
     this.renderer = new THREE.WebGLRenderer({ antialias: !SOFTWARE_RENDERER, alpha: true });
     this.renderer.setPixelRatio(SOFTWARE_RENDERER ? 1 : Math.min(window.devicePixelRatio, 2));
@@ -87,7 +49,7 @@ export class Viewport {
     this.camera.add(headlight, headlight.target);
 
     this.controls = new OrbitControls(this.camera, this.renderer.domElement);
-    this.controls.addEventListener("change", () => requestFrame(this));
+    this.controls.addEventListener("change", () => this.frames.request(this));
 
     this.surface = new THREE.Group(); // the normalised frame: the mesh, its curves and markers
     this.scene.add(this.surface);
@@ -99,7 +61,6 @@ export class Viewport {
     this.surface.add(this.markers);
     this.raycaster = new THREE.Raycaster();
 
-    this.pickHandler(onPick);
     new ResizeObserver(() => this.resize()).observe(this.box);
   }
 
@@ -134,7 +95,7 @@ export class Viewport {
     this.tubeRadius = 0.006 * radius;
     this.markerGeometry?.dispose();
     this.markerGeometry = new THREE.SphereGeometry(3.5 * this.tubeRadius, 16, 12);
-    requestFrame(this);
+    this.frames.request(this);
   }
 
   /** Turn the shape so its ``up`` axis points up and its ``towards`` axis at the viewer, scaled into the
@@ -157,7 +118,7 @@ export class Viewport {
     this.camera.position.set(0, 0, 1.15 * Math.max(y / tan, x / (tan * this.camera.aspect)) + z);
     this.controls.target.set(0, 0, 0);
     this.controls.update();
-    requestFrame(this);
+    this.frames.request(this);
   }
 
   /** Follow another viewport's camera (linked cameras: both shapes live in the same normalised frame). */
@@ -166,7 +127,7 @@ export class Viewport {
     this.camera.quaternion.copy(other.camera.quaternion);
     this.controls.target.copy(other.controls.target);
     this.camera.updateMatrixWorld();
-    requestFrame(this);
+    this.frames.request(this);
   }
 
   // -- what the surface shows ------------------------------------------------------------------------------
@@ -177,7 +138,7 @@ export class Viewport {
     attribute.needsUpdate = true;
     this.setTexture(texture);
     this.mesh.material = this.textured;
-    requestFrame(this);
+    this.frames.request(this);
   }
 
   /** Per-vertex colours: fill(array) writes n x 3 linear RGB into the existing attribute's array. */
@@ -186,7 +147,7 @@ export class Viewport {
     fill(attribute.array);
     attribute.needsUpdate = true;
     this.mesh.material = this.colored;
-    requestFrame(this);
+    this.frames.request(this);
   }
 
   setTexture(texture) {
@@ -219,12 +180,12 @@ export class Viewport {
         this.curveGroup.add(tube);
       }
     }
-    requestFrame(this);
+    this.frames.request(this);
   }
 
   showCurves(visible) {
     this.curveGroup.visible = visible;
-    requestFrame(this);
+    this.frames.request(this);
   }
 
   tube(path, color, widen) {
@@ -254,7 +215,7 @@ export class Viewport {
       marker.position.fromBufferAttribute(positions, vertex);
       this.markers.add(marker);
     }
-    requestFrame(this);
+    this.frames.request(this);
   }
 
   // -- picking ---------------------------------------------------------------------------------------------
@@ -293,7 +254,8 @@ export class Viewport {
     return { x, y, visible: inside && this.pick(x, y) === vertex };
   }
 
-  pickHandler(onPick) {
+  /** handler(internalVertex, pointerEvent) runs on a click on the mesh (a press that did not move). */
+  onPick(handler) {
     const canvas = this.renderer.domElement;
     let down = null;
     canvas.addEventListener("pointerdown", (event) => {
@@ -305,7 +267,7 @@ export class Viewport {
       if (!press || press.id !== event.pointerId) return;
       if (Math.hypot(event.clientX - press.x, event.clientY - press.y) > CLICK_SLOP_PX) return;
       const vertex = this.pick(event.clientX, event.clientY);
-      if (vertex >= 0) onPick(vertex, event);
+      if (vertex >= 0) handler(vertex, event);
     });
   }
 
@@ -316,11 +278,16 @@ export class Viewport {
     this.renderer.setSize(width, height);
     this.camera.aspect = width / height;
     this.camera.updateProjectionMatrix();
-    requestFrame(this);
+    this.frames.request(this);
   }
 
   draw() {
     this.renderer.render(this.scene, this.camera);
+  }
+
+  /** Draw now; resolves with performance.now() once the pixels exist (FrameLoop.drawn). */
+  drawn() {
+    return this.frames.drawn(this);
   }
 
   /** Resolves with performance.now() when the commands issued so far have completed: a fence, polled
@@ -354,6 +321,6 @@ export class Viewport {
     this.renderer.setViewport(viewport);
     this.surface.remove(...samples);
     plain.dispose();
-    requestFrame(this);
+    this.frames.request(this);
   }
 }

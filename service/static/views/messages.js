@@ -1,4 +1,4 @@
-// Messages to the user: toasts, the connection banner, and progress rows for jobs.
+// Messages to the user: toasts, errors, the connection banner, and progress rows for jobs.
 
 const TOAST_MS = { info: 4000, error: 12000 };
 
@@ -12,6 +12,12 @@ export function toast(text, kind = "info") {
   element.append(text, close);
   document.getElementById("toasts").append(element);
   setTimeout(() => element.remove(), TOAST_MS[kind]);
+}
+
+/** An error as a toast (and in the console): "context: message". */
+export function report(error, context) {
+  console.error(context, error);
+  toast(`${context}: ${error.message}`, "error");
 }
 
 /** The banner under the top bar (text), or none (null). */

@@ -1,0 +1,68 @@
+// Curve edits sent to the service. Each keeps the local session record in step with the service's answer;
+// runEdit shows an edit and times it from the click to the frame that shows the new texture.
+import { api } from "../api.js";
+import { curveAdded, curveRemoved, curveReplaced, recordSample, setMap, setRevision, state } from "../store.js";
+import { showCurves, showPending } from "../views/curves.js";
+import { report } from "../views/messages.js";
+import { showMapChoice, showStatus } from "../views/page.js";
+import { paint, viewports } from "../views/viewports.js";
+import { resync } from "./connection.js";
+import { carriedRows } from "./feedback.js";
+
+/** The session's edits: call the service, then keep the local record in step with its answer. */
+export const edits = {
+  async add(spec) {
+    const edit = await api.addCurve(state.session.id, spec);
+    curveAdded(edit.curve);
+    return edit;
+  },
+  async remove(curveId) {
+    const edit = await api.deleteCurve(state.session.id, curveId);
+    curveRemoved(curveId);
+    return edit;
+  },
+  async replace(curveId, spec) {
+    const edit = await api.replaceCurve(state.session.id, curveId, spec);
+    curveReplaced(curveId, edit.curve);
+    return edit;
+  },
+};
+
+/** Run one edit (perform resolves to the service's answer), show it, and time it from the click to the frame
+ * that shows the new texture; ``failure`` starts the message when it fails. The curves and the texture change
+ * in one frame: a software renderer pays for every frame. */
+export async function runEdit(clickTime, kind, failure, perform) {
+  const sessionId = state.session.id;
+  try {
+    const edit = await perform();
+    const editedAt = performance.now();
+    if (state.session?.id !== sessionId) return;
+    setRevision(edit.map.revision);
+    if (state.map === "pointwise") {
+      setMap("functional"); // the refined map belongs to an older revision
+      showMapChoice();
+    }
+    const rows = await carriedRows();
+    const fetchedAt = performance.now();
+    showCurves();
+    showPending();
+    if (rows === null) return; // a newer edit's texture is on its way
+    paint("target", state.fn, rows);
+    const drawnAt = await viewports.target.drawn();
+    recordSample({
+      kind,
+      revision: edit.map.revision,
+      totalMs: drawnAt - clickTime,
+      editMs: editedAt - clickTime,
+      transferMs: fetchedAt - editedAt,
+      drawMs: drawnAt - fetchedAt,
+      solveMs: edit.map.solve_ms,
+    });
+  } catch (error) {
+    showPending();
+    report(error, failure);
+    if (error.kind === "not_found" || error.kind === "conflict") await resync();
+  } finally {
+    showStatus();
+  }
+}

@@ -1,0 +1,47 @@
+// What the surfaces show after every change: the chosen source function carried to the target, through the live
+// map from the service or through the refined pointwise map, timed from the click that asked for it.
+import { api } from "../api.js";
+import { pullBack } from "../functions.js";
+import { nextTransferTicket, recordSample, state } from "../store.js";
+import { report } from "../views/messages.js";
+import { showStatus } from "../views/page.js";
+import { paint, showSource, sourceValues, viewports } from "../views/viewports.js";
+
+const COLUMNS = { uv: 2, xyz: 3, indicator: 1 };
+
+/** The chosen function carried to the target (rows per target vertex), through the live map from the service
+ * or through the refined pointwise map; null when a newer request started meanwhile (its answer wins). */
+export async function carriedRows() {
+  const ticket = nextTransferTicket();
+  const { fn } = state;
+  if (fn === "indicator" && !state.region) return new Float32Array(state.shapes.target.mesh.nVertices);
+  if (state.map === "pointwise") return pullBack(sourceValues(fn), COLUMNS[fn], state.pointwise.p2p);
+  const vertices = fn === "indicator" ? state.region.fileIds : null;
+  const { values } = await api.transfer(state.session.id, fn, vertices);
+  return ticket === state.transferTicket ? values : null;
+}
+
+/** Paint the source and the carried function on the target; with the click's time, record how long it took
+ * (a sample of ``kind``: region, map). */
+export async function showFeedback(clickTime = null, kind = "view") {
+  try {
+    showSource();
+    const rows = await carriedRows();
+    if (rows === null) return;
+    const fetchedAt = performance.now();
+    paint("target", state.fn, rows);
+    if (clickTime === null) return;
+    const drawnAt = await viewports.target.drawn();
+    recordSample({
+      kind,
+      revision: state.session.revision,
+      totalMs: drawnAt - clickTime,
+      editMs: 0,
+      transferMs: fetchedAt - clickTime,
+      drawMs: drawnAt - fetchedAt,
+    });
+    showStatus();
+  } catch (error) {
+    report(error, "The target could not be updated");
+  }
+}

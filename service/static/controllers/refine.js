@@ -1,0 +1,58 @@
+// What the Refine & export panel does: refine the live map into a pointwise one (a job whose files are offered
+// for download and whose map the target can then be shown through), cancel it, download the live map.
+import { api, waitForJob } from "../api.js";
+import { pointwiseMap } from "../mesh.js";
+import { setMap, setPointwise, setRefineJob, state } from "../store.js";
+import { $ } from "../views/dom.js";
+import { listJobFiles, npyBlob, saveBlob } from "../views/downloads.js";
+import { ProgressRow, report } from "../views/messages.js";
+import { pluginChoice } from "../views/forms.js";
+import { enableRefine, showMapChoice, showRefineJob } from "../views/page.js";
+import { showFeedback } from "./feedback.js";
+
+export async function refine() {
+  const { name: converter, params } = pluginChoice("converter");
+  const row = new ProgressRow($("refine-progress"), `${converter} (revision ${state.session.revision})`);
+  enableRefine(false);
+  try {
+    const job = await api.refine(state.session.id, converter, params);
+    setRefineJob(job.id);
+    showRefineJob();
+    const done = await waitForJob(job.id, (update) => row.update(update));
+    row.finish(`finished in ${(done.ended_at - done.started_at).toFixed(1)} s`);
+    listJobFiles($("downloads"), done.links);
+    const text = await api.text(done.links["map_target_to_source.txt"]);
+    const p2p = pointwiseMap(text, state.shapes.source.mesh, state.shapes.target.mesh);
+    setPointwise({ p2p, revision: done.result.revision, converter });
+    setMap("pointwise");
+    showMapChoice();
+    showFeedback();
+  } catch (error) {
+    row.finish(`failed: ${error.message}`, false);
+    report(error, "The refinement did not finish");
+  } finally {
+    setRefineJob(null);
+    showRefineJob();
+    enableRefine(Boolean(state.session?.curves.length));
+  }
+}
+
+export async function cancelRefine() {
+  try {
+    if (state.refineJob) await api.cancelJob(state.refineJob);
+  } catch (error) {
+    report(error, "The refinement could not be canceled");
+  }
+}
+
+/** The live C (source to target) as .npy, from the link in the panel. */
+export async function downloadLiveMap(event) {
+  event.preventDefault();
+  if (!state.session) return;
+  try {
+    const map = await api.map(state.session.id);
+    saveBlob(npyBlob(map.C_source_to_target), `C_source_to_target_${state.session.id}_r${map.revision}.npy`);
+  } catch (error) {
+    report(error, "The map could not be downloaded");
+  }
+}

@@ -1,0 +1,65 @@
+// Opening a session: its record and both shapes are loaded, then shown with the carried function drawn.
+import { api } from "../api.js";
+import { diagonal, xyzValues } from "../functions.js";
+import { decodeMesh } from "../mesh.js";
+import { sessionOpened, setReady, state } from "../store.js";
+import { showCurves, showPending } from "../views/curves.js";
+import { $ } from "../views/dom.js";
+import { listJobFiles } from "../views/downloads.js";
+import { report } from "../views/messages.js";
+import { openPairPanel, showLists, showLoading, showMapChoice, showSessionTitle, showStatus } from "../views/page.js";
+import { orientViews, paint, showShapes, showSource, SIDES, viewports } from "../views/viewports.js";
+import { carriedRows } from "./feedback.js";
+
+/** The session list's choice. */
+export function chooseSession(id) {
+  if (id) openSession(id);
+}
+
+/** Load the session (its id goes into the page's URL) and show it; state.ready once its first texture is drawn. */
+export async function openSession(id) {
+  const url = new URL(window.location.href);
+  url.searchParams.set("session", id);
+  window.history.replaceState(null, "", url);
+  setReady(false);
+  showLoading("Loading the session…");
+  try {
+    const session = await api.session(id);
+    const [source, target] = await Promise.all(SIDES.map((side) => loadShape(session[side], side === "source")));
+    sessionOpened(session, { source, target });
+    listJobFiles($("downloads"), {});
+    $("refine-progress").replaceChildren();
+    showMapChoice();
+    showShapes();
+    orientViews();
+    showCurves();
+    showPending();
+    showSource();
+    paint("target", state.fn, await carriedRows());
+    for (const side of SIDES) viewports[side].warmUp();
+    await viewports.target.drawn();
+    showLoading(null);
+    setReady(true);
+    showSessionTitle();
+    showStatus();
+  } catch (error) {
+    report(error, `Session ${id} could not be opened`);
+    showLoading(`Session ${id} could not be opened: ${error.message}`);
+    openPairPanel();
+  }
+}
+
+async function loadShape(id, withFunctions) {
+  const [info, payload] = await Promise.all([api.shape(id), api.mesh(id)]);
+  const mesh = decodeMesh(payload.buffer);
+  const shape = { info, mesh, diagonal: diagonal(mesh.vertices) };
+  if (withFunctions) Object.assign(shape, { uv: mesh.texcoords, xyz: xyzValues(mesh.vertices) });
+  return shape;
+}
+
+/** Fetch the shapes and sessions and show them in the lists; resolves to { shapes, sessions }. */
+export async function refreshLists() {
+  const [shapes, sessions] = await Promise.all([api.shapes(), api.sessions()]);
+  showLists(shapes, sessions);
+  return { shapes, sessions };
+}

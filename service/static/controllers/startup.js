@@ -1,0 +1,46 @@
+// The page's start: the plugins, the lists, then the session named in the URL, else the newest one, else wait
+// for one (the demo's, still computing its bases) unless the user opens a pair of their own first.
+import { api, sleep } from "../api.js";
+import { setPlugins, state } from "../store.js";
+import { showPlugins } from "../views/forms.js";
+import { report } from "../views/messages.js";
+import { openPairPanel, showLoading } from "../views/page.js";
+import { openSession, refreshLists } from "./session.js";
+
+export async function start() {
+  try {
+    setPlugins(await api.plugins());
+    showPlugins("tracer");
+    showPlugins("converter");
+    const { sessions } = await refreshLists();
+    const id = new URLSearchParams(window.location.search).get("session") ?? sessions[0]?.id;
+    if (id) await openSession(id);
+    else await waitForFirstSession();
+  } catch (error) {
+    report(error, "The UI could not start");
+    showLoading(`The UI could not start: ${error.message}`);
+  }
+}
+
+/** No session yet: poll until one appears, unless the user starts a pair of their own meanwhile. The shape lists
+ * are rebuilt only when the service's shapes or sessions changed. */
+async function waitForFirstSession() {
+  openPairPanel();
+  showLoading(
+    "No session yet. Pick two shapes (or upload them) and open the pair; " +
+      "the demo of `curvefm serve --demo` opens by itself once it is ready.",
+  );
+  let known = "";
+  while (!state.session && !state.pairInProgress) {
+    await sleep(1500);
+    try {
+      const [shapes, sessions] = await Promise.all([api.shapes(), api.sessions()]);
+      const now = [...shapes, ...sessions].map((item) => item.id).join();
+      if (now !== known) await refreshLists();
+      known = now;
+      if (sessions.length && !state.session && !state.pairInProgress) await openSession(sessions[0].id);
+    } catch (error) {
+      if (error.kind !== "network") throw error;
+    }
+  }
+}

@@ -1,0 +1,181 @@
+// The UI's state: the one mutable object of the page. Any module may read `state`; only the functions below
+// change it. subscribe(key, listener) hears of the changes that are announced (the connection).
+
+const noClicks = () => ({ points: { source: [], target: [] }, closed: { source: false, target: false } });
+
+export const state = {
+  plugins: { tracer: [], converter: [] }, // GET /plugins: { name, description, parameters (JSON schema) } each
+  session: null, // the SessionRecord, kept in step with every edit
+  shapes: { source: null, target: null }, // { info, mesh, diagonal } per side; the source also has uv, xyz
+  ready: false, // a session is shown with its first texture drawn
+  fn: "uv", // the carried function: uv (texture), xyz (coordinates as colour), indicator (a region)
+  map: "functional", // or "pointwise": through the last refinement's map
+  region: null, // { center, fileIds, indicator } on the source
+  pickingRegion: false, // the next click on the source chooses the region
+  pointwise: null, // { p2p: Int32Array (target internal -> source internal), revision, converter }
+  texture: null, // the image carried as "uv" (a THREE texture)
+  selected: null, // curve id drawn thicker
+  // The clicks of the curve pair being entered, internal vertex ids per side. A plain click adds a point, and
+  // a plain click after the first closes that side; Shift+click adds a waypoint. Clicking a closed side starts
+  // it over. Sides may be entered in either order.
+  pending: noClicks(),
+  history: [], // edits that can be undone, newest last: { kind: add | remove | replace, curveId, spec }
+  refineJob: null, // the id of the running refinement job
+  pairInProgress: false, // the user is opening a pair (stop waiting for the demo's session)
+  targetChosen: false, // the user chose the target shape (the lists no longer pick one)
+  transferTicket: 0, // counts requests for the carried function: only the newest one's answer is shown
+  connected: true, // the last request reached the service
+  stats: { samples: [], last: null }, // click-to-texture timings (window.curvefmStats)
+};
+
+const listeners = new Map(); // key -> Set of listener(value)
+
+export function subscribe(key, listener) {
+  if (!listeners.has(key)) listeners.set(key, new Set());
+  listeners.get(key).add(listener);
+}
+
+function announce(key) {
+  for (const listener of listeners.get(key) ?? []) listener(state[key]);
+}
+
+// -- plugins, lists and the open session -------------------------------------------------------------------
+export function setPlugins(plugins) {
+  state.plugins = plugins;
+}
+
+/** A session was loaded with its shapes: what belonged to the session shown before is dropped. */
+export function sessionOpened(session, shapes) {
+  Object.assign(state, { session, shapes, region: null, pickingRegion: state.fn === "indicator", pointwise: null });
+  Object.assign(state, { selected: null, map: "functional", history: [], pending: noClicks() });
+}
+
+/** The service's record replaced ours (it changed elsewhere): the local undo history no longer applies. */
+export function sessionReloaded(session) {
+  state.session = session;
+  state.history = [];
+}
+
+export function setReady(ready) {
+  state.ready = ready;
+}
+
+export function setPairInProgress(inProgress) {
+  state.pairInProgress = inProgress;
+}
+
+export function chooseTarget() {
+  state.targetChosen = true;
+}
+
+// -- curves --------------------------------------------------------------------------------------------------
+export function curveAdded(curve) {
+  state.session.curves.push(curve);
+  state.session.next_curve = Math.max(state.session.next_curve, Number(curve.id.slice(1)) + 1);
+}
+
+export function curveRemoved(curveId) {
+  state.session.curves = state.session.curves.filter((c) => c.id !== curveId);
+  if (state.selected === curveId) state.selected = null;
+}
+
+export function curveReplaced(curveId, curve) {
+  state.session.curves = state.session.curves.map((c) => (c.id === curveId ? curve : c));
+}
+
+export function setRevision(revision) {
+  state.session.revision = revision;
+}
+
+export function selectCurve(curveId) {
+  state.selected = curveId;
+}
+
+export function clickPending(side, vertex, waypoint) {
+  const { points, closed } = state.pending;
+  if (closed[side]) {
+    points[side] = [];
+    closed[side] = false;
+  }
+  points[side].push(vertex);
+  if (!waypoint && points[side].length >= 2) closed[side] = true;
+}
+
+export function clearPending() {
+  state.pending = noClicks();
+}
+
+/** Both sides of the pending curve are closed: it can be added. */
+export function pendingComplete() {
+  return state.pending.closed.source && state.pending.closed.target;
+}
+
+export function pendingEmpty() {
+  return state.pending.points.source.length === 0 && state.pending.points.target.length === 0;
+}
+
+/** Remember an edit for undo: kind add | remove | replace, curve as it was before (after, for add). */
+export function recordEdit(kind, curve) {
+  state.history.push({ kind, curveId: curve.id, spec: curve.spec });
+}
+
+/** The newest edit was undone. */
+export function dropNewestEdit() {
+  state.history.pop();
+}
+
+/** A re-added curve got a new id: the older edits follow it. */
+export function renameInHistory(oldId, newId) {
+  for (const entry of state.history) if (entry.curveId === oldId) entry.curveId = newId;
+}
+
+// -- what the surfaces show ----------------------------------------------------------------------------------
+export function setFunction(fn) {
+  state.fn = fn;
+  state.pickingRegion = fn === "indicator" && !state.region;
+}
+
+export function setRegion(region) {
+  state.region = region;
+  state.pickingRegion = false;
+}
+
+export function setPickingRegion(picking) {
+  state.pickingRegion = picking;
+}
+
+export function setMap(map) {
+  state.map = map;
+}
+
+export function setPointwise(pointwise) {
+  state.pointwise = pointwise;
+}
+
+export function setTexture(texture) {
+  state.texture = texture;
+}
+
+/** A new request for the carried function: returns its ticket (see state.transferTicket). */
+export function nextTransferTicket() {
+  state.transferTicket += 1;
+  return state.transferTicket;
+}
+
+// -- jobs, the connection, timings ---------------------------------------------------------------------------
+export function setRefineJob(jobId) {
+  state.refineJob = jobId;
+}
+
+export function setConnected(connected) {
+  if (connected === state.connected) return;
+  state.connected = connected;
+  announce("connected");
+}
+
+/** One click-to-texture timing, in milliseconds rounded to 0.1. */
+export function recordSample(sample) {
+  for (const key of ["totalMs", "editMs", "transferMs", "drawMs"]) sample[key] = Math.round(sample[key] * 10) / 10;
+  state.stats.samples.push(sample);
+  state.stats.last = sample;
+}

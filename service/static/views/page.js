@@ -1,0 +1,84 @@
+// The page around the viewports, from the store: the top bar (title, status line), the loading message, the
+// session and shape lists, and the state of the panels' controls.
+import { state } from "../store.js";
+import { $ } from "./dom.js";
+
+/** The message over the viewports (text), or none (null). */
+export function showLoading(text) {
+  const element = $("loading");
+  element.hidden = text === null;
+  element.textContent = text ?? "";
+}
+
+/** The status line: the session's revision and curves, and the timing of the last click. */
+export function showStatus() {
+  const parts = [];
+  if (state.session) parts.push(`revision ${state.session.revision}`, `${state.session.curves.length} curves`);
+  const last = state.stats.last;
+  if (last) {
+    parts.push(
+      `click→texture ${last.totalMs.toFixed(0)} ms (${last.kind}: edit ${last.editMs.toFixed(0)} · transfer ` +
+        `${last.transferMs.toFixed(0)} · draw ${last.drawMs.toFixed(0)})`,
+    );
+    if (last.solveMs !== undefined) parts.push(`solve ${last.solveMs.toFixed(1)} ms`);
+  }
+  $("status-line").textContent = parts.join(" · ");
+}
+
+/** The shape and session lists (GET /shapes, GET /sessions), keeping what is chosen. */
+export function showLists(shapes, sessions) {
+  for (const [select, role] of [[$("source-select"), "source"], [$("target-select"), "target"]]) {
+    const previous = select.value || state.session?.[role];
+    select.replaceChildren(...shapes.map((s) => new Option(`${s.name} (${s.n_vertices} v)`, s.id)));
+    if (shapes.some((s) => s.id === previous)) select.value = previous;
+  }
+  if (!state.session && shapes.length > 1 && !state.targetChosen) $("target-select").selectedIndex = 1;
+  const sessionSelect = $("session-select");
+  sessionSelect.replaceChildren(
+    new Option("—", ""),
+    ...sessions.map((s) => new Option(`${s.name || s.id} · ${s.n_curves} curves · k=${s.k}`, s.id)),
+  );
+  sessionSelect.value = state.session?.id ?? "";
+}
+
+/** The open session in the lists and the title. */
+export function showSessionTitle() {
+  const { session } = state;
+  const [source, target] = [state.shapes.source.info, state.shapes.target.info];
+  $("session-select").value = session.id;
+  $("source-select").value = session.source;
+  $("target-select").value = session.target;
+  $("session-title").textContent = `${session.name || session.id}: ${source.name} → ${target.name} · k=${session.k}`;
+}
+
+export function openPairPanel() {
+  $("pair-panel").open = true;
+}
+
+export function showPairInProgress() {
+  $("open-pair").disabled = state.pairInProgress;
+}
+
+export function showRegionControls() {
+  $("region-controls").hidden = state.fn !== "indicator";
+}
+
+/** The Map choice: pointwise once a refinement gave a map, and which map is shown. */
+export function showMapChoice() {
+  const { pointwise } = state;
+  const radio = document.querySelector('input[name="map"][value="pointwise"]');
+  radio.disabled = !pointwise;
+  $("pointwise-label").textContent = pointwise
+    ? `Pointwise (${pointwise.converter}, revision ${pointwise.revision})`
+    : "Pointwise (refine first)";
+  document.querySelector(`input[name="map"][value="${state.map}"]`).checked = true;
+}
+
+export function enableRefine(enabled) {
+  $("refine-button").disabled = !enabled;
+}
+
+/** The Cancel button of the refinement shows while its job runs. */
+export function showRefineJob() {
+  $("cancel-refine").hidden = state.refineJob === null;
+}
