@@ -41,18 +41,14 @@ times the endpoints' straight-line distance first, then
        costs ``|e|``. The edge metric is the mean of its two vertex metrics (a mean of SPD matrices is SPD):
        ``w_e = |e| * sqrt(1 - b/2 * (s_i (t.d_i)^2 + s_j (t.d_j)^2))``, between ``|e|/(1+gamma)`` and ``|e|``.
 
-    The feature field (per mesh content and ``smoothing``) and the weighted graph (per mesh content and all
-    parameters) are kept in small LRUs keyed by ``mesh.content_hash``, never by the mesh object, so tracing
-    on many meshes does not pile them up in memory.
+    The feature field (per ``smoothing``) and the weighted graph (per parameters) are cached on the mesh
+    itself (``mesh.derived``, a small LRU that goes with the mesh), so a session that keeps its meshes
+    traces at once after the first curve, and tracing on many meshes does not pile them up in memory.
 
 Ids are internal (see :mod:`curvefm.geometry.mesh`); callers translate file ids with ``mesh.internal_ids`` first.
 """
 
 from __future__ import annotations
-
-import threading
-from collections import OrderedDict
-from collections.abc import Callable, Hashable
 
 import numpy as np
 import scipy.sparse as sp
@@ -65,35 +61,6 @@ from curvefm.registry import Plugin
 
 # ----------------------------------------------------------------------------------------------------------
 # Shared helpers
-
-
-class _LRU:
-    """A tiny thread-safe LRU of values computed from a key; holds values only, never meshes."""
-
-    def __init__(self, maxsize: int):
-        self.maxsize = maxsize
-        self._data: OrderedDict[Hashable, object] = OrderedDict()
-        self._lock = threading.Lock()
-
-    def get(self, key: Hashable, compute: Callable[[], object]):
-        with self._lock:
-            if key in self._data:
-                self._data.move_to_end(key)
-                return self._data[key]
-        value = compute()  # outside the lock: a slow build must not block other meshes' traces
-        with self._lock:
-            self._data[key] = value
-            self._data.move_to_end(key)
-            while len(self._data) > self.maxsize:
-                self._data.popitem(last=False)
-        return value
-
-    def clear(self) -> None:
-        with self._lock:
-            self._data.clear()
-
-    def __len__(self) -> int:
-        return len(self._data)
 
 
 def _check_endpoints(mesh: Mesh, start, end) -> tuple[int, int]:
@@ -197,16 +164,6 @@ class AnisotropicParams(BaseModel):
     )
 
 
-_FIELD_CACHE = _LRU(maxsize=8)
-_GRAPH_CACHE = _LRU(maxsize=8)
-
-
-def clear_caches() -> None:
-    """Forget every cached feature field and anisotropic graph (for benchmarks and tests)."""
-    _FIELD_CACHE.clear()
-    _GRAPH_CACHE.clear()
-
-
 def _signed_dihedral(mesh: Mesh) -> np.ndarray:
     """Signed dihedral angle per edge of ``mesh.edges``: > 0 convex, < 0 concave, 0 on boundary/non-manifold.
 
@@ -307,13 +264,10 @@ def feature_field(mesh: Mesh, smoothing: int = 2) -> tuple[np.ndarray, np.ndarra
     return directions, anisotropy
 
 
-def _cached_field(mesh: Mesh, smoothing: int) -> tuple[np.ndarray, np.ndarray]:
-    return _FIELD_CACHE.get((mesh.content_hash, smoothing), lambda: feature_field(mesh, smoothing))
-
-
 def anisotropic_weights(mesh: Mesh, params: AnisotropicParams) -> np.ndarray:
     """Edge costs (aligned with ``mesh.edges``) of the anisotropic metric; see the module docstring."""
-    directions, anisotropy = _cached_field(mesh, params.smoothing)
+    key = ("anisotropic feature field", params.smoothing)
+    directions, anisotropy = mesh.derived.get_or_compute(key, lambda: feature_field(mesh, params.smoothing))
     positive = anisotropy[anisotropy > 1e-12 * max(float(anisotropy.max()), 0.0)]
     length = mesh.edge_lengths
     if positive.size == 0 or params.strength == 0:
@@ -330,9 +284,9 @@ def anisotropic_weights(mesh: Mesh, params: AnisotropicParams) -> np.ndarray:
 
 
 def anisotropic_graph(mesh: Mesh, params: AnisotropicParams) -> sp.csr_matrix:
-    """The anisotropic edge graph, cached per (mesh content, parameters)."""
-    key = (mesh.content_hash, params.strength, params.smoothing, params.saturation_percentile)
-    return _GRAPH_CACHE.get(
+    """The anisotropic edge graph, cached on the mesh per parameters."""
+    key = ("anisotropic graph", params.strength, params.smoothing, params.saturation_percentile)
+    return mesh.derived.get_or_compute(
         key, lambda: edge_weight_graph(mesh.n_vertices, mesh.edges, anisotropic_weights(mesh, params))
     )
 

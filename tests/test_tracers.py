@@ -15,6 +15,7 @@ from curvefm.plugins import tracers
 from curvefm.plugins.tracers import ANISOTROPIC, GEODESIC
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+ANISOTROPIC_DEFAULTS = ANISOTROPIC.parse_params({})
 
 
 def grid_faces(nu: int, nv: int, wrap_u: bool = False) -> np.ndarray:
@@ -46,13 +47,6 @@ def roof(
 
 def edge_length(mesh, path) -> float:
     return float(np.linalg.norm(np.diff(mesh.vertices[path], axis=0), axis=1).sum())
-
-
-@pytest.fixture(autouse=True)
-def _fresh_caches():
-    tracers.clear_caches()
-    yield
-    tracers.clear_caches()
 
 
 @pytest.fixture(scope="module")
@@ -175,22 +169,20 @@ def test_anisotropic_path_is_scale_invariant(factor):
         np.testing.assert_array_equal(a, b)
 
 
-def test_graph_is_cached_per_content_and_params(wolf):
-    params = ANISOTROPIC.parse_params({})
-    g1 = tracers.anisotropic_graph(wolf, params)
-    assert tracers.anisotropic_graph(wolf, params) is g1
-    copy = build_mesh(wolf.vertices, wolf.faces)  # a different object with the same content
-    assert tracers.anisotropic_graph(copy, params) is g1
-    assert tracers.anisotropic_graph(wolf, ANISOTROPIC.parse_params({"strength": 2.0})) is not g1
+def test_graph_is_cached_on_the_mesh_per_params():
+    mesh, _, _ = roof(1.0, nx=6, ny=5)
+    g1 = tracers.anisotropic_graph(mesh, ANISOTROPIC_DEFAULTS)
+    assert tracers.anisotropic_graph(mesh, ANISOTROPIC_DEFAULTS) is g1
+    assert len(mesh.derived) == 2  # the feature field and the graph
+    assert tracers.anisotropic_graph(mesh, ANISOTROPIC.parse_params({"strength": 2.0})) is not g1
+    assert len(mesh.derived) == 3  # the same feature field serves both graphs
 
 
 def test_cache_is_bounded():
-    params = ANISOTROPIC.parse_params({})
-    for seed in range(tracers._GRAPH_CACHE.maxsize + 4):
-        mesh, _, _ = roof(1.0, nx=6, ny=5, seed=seed)
-        ANISOTROPIC.run(mesh, 0, mesh.n_vertices - 1, params)
-    assert len(tracers._GRAPH_CACHE) == tracers._GRAPH_CACHE.maxsize
-    assert len(tracers._FIELD_CACHE) <= tracers._FIELD_CACHE.maxsize
+    mesh, _, _ = roof(1.0, nx=6, ny=5)
+    for strength in range(mesh.derived.maxsize + 4):
+        ANISOTROPIC.run(mesh, 0, mesh.n_vertices - 1, ANISOTROPIC.parse_params({"strength": strength}))
+    assert len(mesh.derived) == mesh.derived.maxsize
 
 
 # ----------------------------------------------------------------------------------------------------------

@@ -58,19 +58,16 @@ def geodesic_graph(mesh: Mesh, diagonals: bool = True) -> sp.csr_matrix:
     weight is the length of a path on the surface, so graph distances never underestimate polyhedral
     geodesics. The graph is cached per mesh object.
     """
-    cache = mesh.derived
-    key = ("graph", bool(diagonals))
-    if key in cache:
-        return cache[key]
     if not diagonals:
-        graph = mesh.edge_graph
-    else:
-        k, opp, length = _unfolded_diagonals(mesh)
-        edges = np.r_[mesh.edges, np.c_[np.minimum(k, opp), np.maximum(k, opp)]]
-        weights = np.r_[mesh.edge_lengths, length]
-        graph = _min_weight_graph(mesh.n_vertices, edges, weights)
-    cache[key] = graph
-    return graph
+        return mesh.edge_graph
+    return mesh.derived.get_or_compute(("geodesic graph with diagonals",), lambda: _graph_with_diagonals(mesh))
+
+
+def _graph_with_diagonals(mesh: Mesh) -> sp.csr_matrix:
+    k, opp, length = _unfolded_diagonals(mesh)
+    edges = np.r_[mesh.edges, np.c_[np.minimum(k, opp), np.maximum(k, opp)]]
+    weights = np.r_[mesh.edge_lengths, length]
+    return _min_weight_graph(mesh.n_vertices, edges, weights)
 
 
 def _unfolded_diagonals(mesh: Mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -131,11 +128,11 @@ def geodesic_diameter(mesh: Mesh, *, diagonals: bool = True, max_sweeps: int = 6
     of the graph diameter, exact on most shapes. On a mesh with several components it is the diameter of
     the component of the starting vertex.
     """
-    cache = mesh.derived
-    key = ("diameter", bool(diagonals))
-    if key in cache:
-        return cache[key]
-    graph = geodesic_graph(mesh, diagonals)
+    key = ("geodesic diameter", bool(diagonals))
+    return mesh.derived.get_or_compute(key, lambda: _double_sweep(mesh, geodesic_graph(mesh, diagonals), max_sweeps))
+
+
+def _double_sweep(mesh: Mesh, graph: sp.csr_matrix, max_sweeps: int) -> float:
     start = int(np.argmax(np.linalg.norm(mesh.vertices - mesh.vertices.mean(axis=0), axis=1)))
     best = 0.0
     seen = set()
@@ -150,7 +147,6 @@ def geodesic_diameter(mesh: Mesh, *, diagonals: bool = True, max_sweeps: int = 6
         if far in seen:
             break
         start = far
-    cache[key] = best
     return best
 
 
