@@ -52,14 +52,13 @@ VARIANTS = [
 def errors(result: MatchResult, maps, truth) -> dict:
     reverse = (truth.ids_Y, truth.ids_X)
     return {
-        "source_to_target": evaluate_map(maps.p2p_MN, truth, result.mesh_N).mean_area,
-        "target_to_source": evaluate_map(maps.p2p_NM, reverse, result.mesh_M).mean_area,
+        "source_to_target": evaluate_map(maps.p2p_MN, truth, result.pair.mesh_N).mean_area,
+        "target_to_source": evaluate_map(maps.p2p_NM, reverse, result.pair.mesh_M).mean_area,
     }
 
 
 def run_converter(result: MatchResult, truth, name: str, params: dict, repeat: int) -> dict:
-    plugin = registry.get("converter", name)
-    parsed = plugin.parse_params(params)
+    plugin, parsed = registry.load("converter", name, params)
     times, maps, last = [], None, ""
 
     def progress(fraction: float, message: str) -> None:
@@ -68,7 +67,7 @@ def run_converter(result: MatchResult, truth, name: str, params: dict, repeat: i
 
     for _ in range(repeat):
         start = time.perf_counter()
-        maps = plugin.run(result.problem(), parsed, progress)
+        maps = plugin.run(result.pair, result.fmaps, parsed, progress)
         times.append(time.perf_counter() - start)
     return {"converter": name, "params": params, "seconds": statistics.median(times), "last_message": last} | errors(
         result, maps, truth
@@ -77,7 +76,7 @@ def run_converter(result: MatchResult, truth, name: str, params: dict, repeat: i
 
 def session_record(store: Store, result: MatchResult, curves) -> dict:
     """The refinement job's input: a session snapshot with the curves as explicit file-id paths."""
-    mesh_M, mesh_N = result.mesh_M, result.mesh_N
+    mesh_M, mesh_N = result.pair.meshes
     records = []
     for i, (path_M, path_N) in enumerate(curves):
         ids_M, ids_N = mesh_M.file_ids[path_M].tolist(), mesh_N.file_ids[path_N].tolist()
@@ -109,8 +108,9 @@ def run_worker_job(store: Store, result: MatchResult, curves, truth) -> dict:
     if info.state != "finished":
         return out | {"error": info.error}
     p2p_file = np.load(store.root / "results" / job_id / "p2p_source_to_target.npy")
-    p2p_MN = result.mesh_N.internal_ids(p2p_file[result.mesh_M.file_ids])
-    return out | {"source_to_target": evaluate_map(p2p_MN, truth, result.mesh_N).mean_area}
+    mesh_M, mesh_N = result.pair.meshes
+    p2p_MN = mesh_N.internal_ids(p2p_file[mesh_M.file_ids])
+    return out | {"source_to_target": evaluate_map(p2p_MN, truth, mesh_N).mean_area}
 
 
 def main() -> None:

@@ -89,7 +89,7 @@ def main() -> None:
         "anisotropic_params": params.model_dump(),
         "budget_ms": 30,
     }
-    for plugin, p in ((tracers.GEODESIC, None), (tracers.ANISOTROPIC, params)):
+    for plugin, p in ((tracers.GEODESIC, tracers.GEODESIC.parse_params({})), (tracers.ANISOTROPIC, params)):
         plugin.run(mesh, 0, 1, p)  # warm (the anisotropic graph is cached from the builds above)
         result[plugin.name] = {name: _time_traces(plugin, mesh, pp, p) for name, pp in pairs.items()}
     result["machine"] = {"platform": platform.platform(), "cpus": os.cpu_count()}

@@ -1,15 +1,22 @@
-"""Plugins found through Python entry points.
+"""Plugins found through Python entry points, one entry-point group and one contract per kind.
 
-Four entry-point groups, one per kind of plugin. Each entry point names a :class:`Plugin` object:
+A plugin is a small frozen object: a ``name``, a ``description``, a pydantic parameter model ``Params`` and
+one function of the work, ``run``. Each kind has its own contract class; an entry point must name an
+instance of its group's class (a converter listed under ``curvefm.tracers`` is refused when loaded):
 
-* ``curvefm.tracers``:    ``run(mesh, start, end, params) -> path``, a vertex path (internal ids) from start
-  to end whose consecutive entries share an edge.
-* ``curvefm.bases``:      ``run(mesh, k, params, progress) -> Basis``.
-* ``curvefm.converters``: ``run(problem: MapProblem, params, progress) -> PointwiseMaps``.
-* ``curvefm.methods``:    ``run(inputs: MapInputs, params, progress) -> FunctionalMaps``, functional maps
-  from curves or landmarks (``curvefm reproduce`` compares them).
+* ``curvefm.tracers``, :class:`TracerPlugin`: ``run(mesh, start, end, params) -> path``, a vertex path
+  (internal ids) from start to end whose consecutive entries share an edge.
+* ``curvefm.bases``, :class:`BasisPlugin`: ``run(mesh, k, params, progress) -> Basis``.
+* ``curvefm.converters``, :class:`ConverterPlugin`: ``run(pair, maps, params, progress) -> PointwiseMaps``,
+  pointwise maps both ways from a :class:`~curvefm.spectral.ShapePair` and its functional maps. Optional
+  hook ``basis_size(params) -> int``: the basis functions per shape the converter works with, so that callers
+  holding stored bases can pass bases that large (0, the default: the maps' own size is enough).
+* ``curvefm.methods``, :class:`MethodPlugin`: ``run(pair, hints, params, progress) -> FunctionalMaps``,
+  functional maps from curves or landmarks (``curvefm reproduce`` compares them).
 
-Our own built-ins are registered in ``pyproject.toml`` exactly as a third-party package registers its own.
+Parameters are parsed once, here (:func:`load`, or :meth:`Plugin.parse_params` on a plugin already at hand):
+``run`` receives the plugin's own ``Params`` model, never a dict. Our own built-ins are registered in
+``pyproject.toml`` exactly as a third-party package registers its own.
 """
 
 from __future__ import annotations
@@ -17,28 +24,34 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cache
-from importlib.metadata import entry_points
+from importlib.metadata import EntryPoint, entry_points
+from typing import TYPE_CHECKING, Generic, TypeVar
 
 from pydantic import BaseModel, ValidationError
 
 from curvefm.errors import CurvefmError
 
-GROUPS = {
-    "tracer": "curvefm.tracers",
-    "basis": "curvefm.bases",
-    "converter": "curvefm.converters",
-    "method": "curvefm.methods",
-}
+if TYPE_CHECKING:
+    import numpy as np
+
+    from curvefm.fmap import FunctionalMaps, Hints
+    from curvefm.geometry import Mesh
+    from curvefm.pointwise import PointwiseMaps
+    from curvefm.progress import Progress
+    from curvefm.spectral import Basis, ShapePair
+
+P = TypeVar("P", bound=BaseModel)
 
 
 @dataclass(frozen=True)
-class Plugin:
+class Plugin(Generic[P]):
+    """What every kind has: a name, a description and the parameter model its ``run`` receives."""
+
     name: str
     description: str
-    Params: type[BaseModel]
-    run: Callable
+    Params: type[P]
 
-    def parse_params(self, params: dict | BaseModel | None) -> BaseModel:
+    def parse_params(self, params: dict | BaseModel | None) -> P:
         """Validate user parameters, raising :class:`CurvefmError` that names each bad field."""
         if isinstance(params, self.Params):
             return params
@@ -54,37 +67,84 @@ class Plugin:
         return {"name": self.name, "description": self.description, "parameters": self.Params.model_json_schema()}
 
 
-def _group(kind: str) -> str:
-    if kind not in GROUPS:
-        raise CurvefmError(f"unknown plugin kind '{kind}'; kinds are {', '.join(GROUPS)}")
-    return GROUPS[kind]
+@dataclass(frozen=True)
+class TracerPlugin(Plugin[P]):
+    run: Callable[[Mesh, int, int, P], np.ndarray]
+
+
+@dataclass(frozen=True)
+class BasisPlugin(Plugin[P]):
+    run: Callable[[Mesh, int, P, Progress], Basis]
+
+
+def no_basis_size(params: BaseModel) -> int:
+    """A converter that works in the functional maps' own bases."""
+    return 0
+
+
+@dataclass(frozen=True)
+class ConverterPlugin(Plugin[P]):
+    run: Callable[[ShapePair, FunctionalMaps, P, Progress], PointwiseMaps]
+    basis_size: Callable[[P], int] = no_basis_size
+
+
+@dataclass(frozen=True)
+class MethodPlugin(Plugin[P]):
+    run: Callable[[ShapePair, Hints, P, Progress], FunctionalMaps]
+
+
+#: kind -> (entry-point group, contract class)
+KINDS: dict[str, tuple[str, type[Plugin]]] = {
+    "tracer": ("curvefm.tracers", TracerPlugin),
+    "basis": ("curvefm.bases", BasisPlugin),
+    "converter": ("curvefm.converters", ConverterPlugin),
+    "method": ("curvefm.methods", MethodPlugin),
+}
+
+
+def _kind(kind: str) -> tuple[str, type[Plugin]]:
+    if kind not in KINDS:
+        raise CurvefmError(f"unknown plugin kind '{kind}'; kinds are {', '.join(KINDS)}")
+    return KINDS[kind]
 
 
 @cache
-def _entry_points(group: str) -> tuple:
+def _entry_points(group: str) -> tuple[EntryPoint, ...]:
     # scanning installed distributions costs ~50 ms; plugins are installed before a process starts
     return tuple(entry_points(group=group))
 
 
 def names(kind: str) -> list[str]:
     """Names of the installed plugins of one kind."""
-    return sorted({ep.name for ep in _entry_points(_group(kind))})
+    return sorted({ep.name for ep in _entry_points(_kind(kind)[0])})
 
 
 @cache
 def get(kind: str, name: str) -> Plugin:
-    """Load a plugin by name; an unknown name raises an error listing what is installed."""
-    matches = [ep for ep in _entry_points(_group(kind)) if ep.name == name]
+    """Load a plugin by name; an unknown name raises an error listing what is installed, an entry point whose
+    object is not the kind's contract an error naming the distribution and the entry point."""
+    group, contract = _kind(kind)
+    matches = [ep for ep in _entry_points(group) if ep.name == name]
     if not matches:
         raise CurvefmError(
             f"unknown {kind} '{name}'; installed {kind}s: {', '.join(names(kind)) or 'none'}", kind="invalid"
         )
     plugin = matches[0].load()
-    if not isinstance(plugin, Plugin) and not all(hasattr(plugin, a) for a in ("name", "Params", "run")):
-        raise CurvefmError(f"{kind} plugin '{name}' ({matches[0].value}) is not a curvefm Plugin object")
+    if not isinstance(plugin, contract):
+        ep = matches[0]
+        raise CurvefmError(
+            f"the distribution '{ep.dist.name}' registers '{ep.name} = {ep.value}' in the entry-point group "
+            f"'{group}', but that object is a {type(plugin).__name__}, not a curvefm.registry.{contract.__name__}"
+        )
     return plugin
+
+
+def load(kind: str, name: str, params: dict | BaseModel | None = None) -> tuple[Plugin, BaseModel]:
+    """The plugin and its parsed parameters, ready for ``plugin.run(..., params, ...)``."""
+    plugin = get(kind, name)
+    return plugin, plugin.parse_params(params)
 
 
 def describe_all() -> dict[str, list[dict]]:
     """Every installed plugin with its parameter schema, by kind (what ``curvefm plugins`` prints)."""
-    return {kind: [get(kind, name).describe() for name in names(kind)] for kind in GROUPS}
+    return {kind: [get(kind, name).describe() for name in names(kind)] for kind in KINDS}

@@ -20,6 +20,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from pydantic import BaseModel
 
 from curvefm import registry
 from curvefm.errors import CurvefmError
@@ -107,13 +108,19 @@ class Store:
     def basis_path(self, mesh_hash: str, plugin: str, k: int, params: dict) -> Path:
         return self.root / "bases" / mesh_hash / f"{plugin}-k{k}-{params_key(params)}.npz"
 
-    def find_basis(self, mesh_hash: str, k: int, plugin: str = "laplace-beltrami", params: dict | None = None):
+    def find_basis(
+        self, mesh_hash: str, k: int, plugin: str = "laplace-beltrami", params: dict | BaseModel | None = None
+    ):
         """A stored basis with at least k functions (truncated to k), or None. ``params`` default to the
         plugin's defaults, the form :meth:`ensure_basis` stores under."""
-        params = registry.get("basis", plugin).parse_params(params).model_dump()
+        canonical = registry.load("basis", plugin, params)[1].model_dump()
+        return self._find_basis(mesh_hash, k, plugin, canonical)
+
+    def _find_basis(self, mesh_hash: str, k: int, plugin: str, canonical: dict):
+        """:meth:`find_basis` with the parameters already parsed and dumped (``Params.model_dump()``)."""
         folder = self.root / "bases" / mesh_hash
         best = None
-        for path in folder.glob(f"{plugin}-k*-{params_key(params)}.npz"):
+        for path in folder.glob(f"{plugin}-k*-{params_key(canonical)}.npz"):
             stored_k = int(path.name[len(plugin) + 2 :].split("-")[0])
             if stored_k >= k and (best is None or stored_k < best[0]):
                 best = (stored_k, path)
@@ -137,15 +144,14 @@ class Store:
         mesh: Mesh,
         k: int,
         plugin: str = "laplace-beltrami",
-        params: dict | None = None,
+        params: dict | BaseModel | None = None,
         progress: Progress = no_progress,
     ) -> Basis:
         """The stored basis, or compute it with the named basis plugin and store it."""
-        basis_plugin = registry.get("basis", plugin)
-        parsed = basis_plugin.parse_params(params)
+        basis_plugin, parsed = registry.load("basis", plugin, params)
         canonical = parsed.model_dump()
         mesh_hash = self.put_mesh(mesh)
-        found = self.find_basis(mesh_hash, k, plugin, params)
+        found = self._find_basis(mesh_hash, k, plugin, canonical)
         if found is not None:
             progress(1.0, "basis found in the store")
             return found

@@ -1,1 +1,2 @@
-"""Built-in plugins (tracers, bases, converters), registered through the same entry points a third party uses."""
+"""Built-in plugins (tracers, bases, converters, map methods), registered through the same entry points a third
+party uses."""

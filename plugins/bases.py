@@ -9,7 +9,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from curvefm.geometry import Mesh, cotangent_laplacian, robust_laplacian
 from curvefm.progress import Progress, no_progress
-from curvefm.registry import Plugin
+from curvefm.registry import BasisPlugin
 from curvefm.spectral import Basis, check_k, smallest_eigenpairs
 
 
@@ -37,7 +37,7 @@ def compute_laplace_beltrami(
     return Basis(np.maximum(evals, 0.0), evecs, mass)
 
 
-LAPLACE_BELTRAMI = Plugin(
+LAPLACE_BELTRAMI = BasisPlugin(
     name="laplace-beltrami",
     description="First k eigenpairs of the Laplace-Beltrami operator (shift-invert), on the unit-area mesh",
     Params=LaplaceBeltramiParams,

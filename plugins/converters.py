@@ -6,9 +6,11 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from curvefm.pointwise import MapProblem, PointwiseMaps, pointwise_from_both, pointwise_from_fmap
+from curvefm.fmap import FunctionalMaps
+from curvefm.pointwise import PointwiseMaps, pointwise_from_both, pointwise_from_fmap
 from curvefm.progress import Progress, no_progress
-from curvefm.registry import Plugin
+from curvefm.registry import ConverterPlugin
+from curvefm.spectral import ShapePair
 
 
 class NearestNeighborParams(BaseModel):
@@ -24,23 +26,23 @@ class NearestNeighborParams(BaseModel):
 
 
 def convert_nearest_neighbor(
-    problem: MapProblem, params: NearestNeighborParams, progress: Progress = no_progress
+    pair: ShapePair, maps: FunctionalMaps, params: NearestNeighborParams, progress: Progress = no_progress
 ) -> PointwiseMaps:
-    M, N = problem.basis_M, problem.basis_N
+    M, N = pair.basis_M, pair.basis_N
     progress(0.0, "nearest neighbours N -> M")
     if params.embedding == "both":
-        p2p_NM = pointwise_from_both(problem.C_MN, problem.C_NM, M, N, params.search)
+        p2p_NM = pointwise_from_both(maps.C_MN, maps.C_NM, M, N, params.search)
         progress(0.5, "nearest neighbours M -> N")
-        p2p_MN = pointwise_from_both(problem.C_NM, problem.C_MN, N, M, params.search)
+        p2p_MN = pointwise_from_both(maps.C_NM, maps.C_MN, N, M, params.search)
     else:
-        p2p_NM = pointwise_from_fmap(problem.C_MN, M, N, params.search)
+        p2p_NM = pointwise_from_fmap(maps.C_MN, M, N, params.search)
         progress(0.5, "nearest neighbours M -> N")
-        p2p_MN = pointwise_from_fmap(problem.C_NM, N, M, params.search)
+        p2p_MN = pointwise_from_fmap(maps.C_NM, N, M, params.search)
     progress(1.0, "done")
     return PointwiseMaps(p2p_NM=p2p_NM, p2p_MN=p2p_MN)
 
 
-NEAREST_NEIGHBOR = Plugin(
+NEAREST_NEIGHBOR = ConverterPlugin(
     name="nearest-neighbor",
     description="Nearest neighbours in the spectral embedding, both directions (Ovsjanikov et al. 2012)",
     Params=NearestNeighborParams,

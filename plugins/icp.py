@@ -18,17 +18,11 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from curvefm.pointwise import (
-    MapProblem,
-    PointwiseMaps,
-    bases_with,
-    fmap_from_pointwise,
-    initial_maps,
-    pointwise_from_fmap,
-)
+from curvefm.fmap import FunctionalMaps
+from curvefm.pointwise import PointwiseMaps, bases_with, fmap_from_pointwise, initial_maps, pointwise_from_fmap
 from curvefm.progress import Progress, no_progress, scaled
-from curvefm.registry import Plugin
-from curvefm.spectral import Basis
+from curvefm.registry import ConverterPlugin
+from curvefm.spectral import Basis, ShapePair
 
 
 class IcpParams(BaseModel):
@@ -43,11 +37,6 @@ class IcpParams(BaseModel):
     search: Literal["faiss", "blocked"] = Field(
         "faiss", description="exact nearest-neighbour backend: faiss IndexFlatL2, or blocked numpy matrix products"
     )
-
-    def basis_size(self) -> int:
-        """Basis functions per shape this converter works with. A MapProblem whose bases are smaller makes
-        it compute larger ones itself; callers holding stored bases of this size should pass them."""
-        return self.k_image
 
     @model_validator(mode="after")
     def _image_at_least_domain(self):
@@ -69,10 +58,12 @@ def icp_step(p2p_NM: np.ndarray, basis_M: Basis, basis_N: Basis, k: int, k_image
     return pointwise_from_fmap(C_MN, basis_M, basis_N, search)
 
 
-def convert_icp(problem: MapProblem, params: IcpParams, progress: Progress = no_progress) -> PointwiseMaps:
+def convert_icp(
+    pair: ShapePair, fmaps: FunctionalMaps, params: IcpParams, progress: Progress = no_progress
+) -> PointwiseMaps:
     progress(0.0, "initial maps (nearest neighbours)")
-    maps = initial_maps(problem, params.search)
-    basis_M, basis_N = bases_with(problem, params.k_image, scaled(progress, 0.05, 0.1))
+    maps = initial_maps(pair, fmaps, params.search)
+    basis_M, basis_N = bases_with(pair, params.k_image, scaled(progress, 0.05, 0.1))
     p2p_NM, p2p_MN = maps.p2p_NM, maps.p2p_MN
     for it in range(params.iterations):
         progress(0.1 + 0.9 * it / params.iterations, f"ICP iteration {it + 1} of at most {params.iterations}")
@@ -86,9 +77,15 @@ def convert_icp(problem: MapProblem, params: IcpParams, progress: Progress = no_
     return PointwiseMaps(p2p_NM=p2p_NM, p2p_MN=p2p_MN)
 
 
-ICP = Plugin(
+def icp_basis_size(params: IcpParams) -> int:
+    """The image side's basis size: a pair whose bases are smaller makes ICP compute larger ones itself."""
+    return params.k_image
+
+
+ICP = ConverterPlugin(
     name="icp",
     description="Orthogonal ICP refinement of both maps (Ovsjanikov et al. 2012), from the nearest-neighbour maps",
     Params=IcpParams,
     run=convert_icp,
+    basis_size=icp_basis_size,
 )

@@ -1,6 +1,6 @@
 """Method plugins ``curves``, ``obcs12`` and ``no17``: functional maps from curves or landmarks.
 
-See :mod:`curvefm.methods` for the energies. The descriptor baselines follow the usual pyFM-style setup:
+See :mod:`curvefm.fmap.baselines` for the energies. The descriptor baselines follow the usual pyFM-style setup:
 wave kernel signatures and wave kernel maps at the landmarks from the first ``spectrum`` eigenpairs, a map
 of size ``k`` (smaller than ours: descriptor methods degrade in large bases, see docs/results.md).
 """
@@ -19,16 +19,17 @@ from curvefm.fmap import (
     CurveMapSolver,
     DescriptorEnergy,
     FunctionalMaps,
-    MapInputs,
+    Hints,
     check_method_k,
     descriptor_least_squares,
     lbfgs,
     normalised_eigenvalues,
 )
 from curvefm.progress import Progress, no_progress
-from curvefm.registry import Plugin
+from curvefm.registry import MethodPlugin
 from curvefm.spectral import (
     Basis,
+    ShapePair,
     curve_function,
     multiplication_operators,
     normalised,
@@ -43,16 +44,18 @@ class CurvesParams(BaseModel):
     samples: int = Field(DEFAULT_SAMPLES, ge=2, le=10_000, description="uniform samples per curve")
 
 
-def run_curves(inputs: MapInputs, params: CurvesParams, progress: Progress = no_progress) -> FunctionalMaps:
-    if not inputs.curves:
+def run_curves(
+    pair: ShapePair, hints: Hints, params: CurvesParams, progress: Progress = no_progress
+) -> FunctionalMaps:
+    if not hints.curves:
         raise CurvefmError("the 'curves' method needs at least one pair of curves")
-    k = min(inputs.basis_M.k, inputs.basis_N.k)
+    k = min(pair.basis_M.k, pair.basis_N.k)
     solver = CurveMapSolver(
-        inputs.mesh_M.vertices, inputs.basis_M, inputs.mesh_N.vertices, inputs.basis_N,
+        pair.mesh_M.vertices, pair.basis_M, pair.mesh_N.vertices, pair.basis_N,
         k=k, alpha=params.alpha, samples=params.samples,
     )  # fmt: skip
-    weights = inputs.weights or (1.0,) * len(inputs.curves)
-    solver.add_curves([(pm, pn, w) for (pm, pn), w in zip(inputs.curves, weights, strict=True)])
+    weights = hints.weights or (1.0,) * len(hints.curves)
+    solver.add_curves([(pm, pn, w) for (pm, pn), w in zip(hints.curves, weights, strict=True)])
     progress(1.0, "curve-constrained maps solved")
     return FunctionalMaps(solver.C_MN, solver.C_NM)
 
@@ -80,26 +83,28 @@ class NO17Params(DescriptorParams):
     max_iter: int = Field(300, ge=1, le=100_000, description="L-BFGS iterations")
 
 
-def landmark_descriptors(inputs: MapInputs, params: DescriptorParams) -> tuple[np.ndarray, np.ndarray]:
+def landmark_descriptors(
+    pair: ShapePair, hints: Hints, params: DescriptorParams
+) -> tuple[np.ndarray, np.ndarray]:
     """Corresponding descriptor columns on M and N: WKS, and the wave kernel maps at the landmarks."""
-    if params.landmarks and len(inputs.landmarks) == 0:
+    if params.landmarks and len(hints.landmarks) == 0:
         raise CurvefmError("the descriptor methods need at least one landmark (or one curve), or landmarks=false")
     out = []
-    for side, basis in ((0, inputs.basis_M), (1, inputs.basis_N)):
+    for side, basis in ((0, pair.basis_M), (1, pair.basis_N)):
         spectral = _spectrum(basis, params.spectrum)
         columns = [wave_kernel_signature(spectral, params.energies, params.sigma)]
         if params.landmarks:
-            columns.append(wave_kernel_maps(spectral, inputs.landmarks[:, side], params.energies, params.sigma))
+            columns.append(wave_kernel_maps(spectral, hints.landmarks[:, side], params.energies, params.sigma))
         out.append(normalised(basis, np.hstack(columns)))
     return out[0], out[1]
 
 
-def curve_descriptors(inputs: MapInputs) -> tuple[np.ndarray, np.ndarray]:
-    if not inputs.curves:
+def curve_descriptors(pair: ShapePair, hints: Hints) -> tuple[np.ndarray, np.ndarray]:
+    if not hints.curves:
         raise CurvefmError("NO17 with inputs='curves' needs at least one pair of curves")
-    F_M = np.column_stack([curve_function(inputs.mesh_M.vertices, pm) for pm, _ in inputs.curves])
-    F_N = np.column_stack([curve_function(inputs.mesh_N.vertices, pn) for _, pn in inputs.curves])
-    return normalised(inputs.basis_M, F_M), normalised(inputs.basis_N, F_N)
+    F_M = np.column_stack([curve_function(pair.mesh_M.vertices, pm) for pm, _ in hints.curves])
+    F_N = np.column_stack([curve_function(pair.mesh_N.vertices, pn) for _, pn in hints.curves])
+    return normalised(pair.basis_M, F_M), normalised(pair.basis_N, F_N)
 
 
 def _spectrum(basis: Basis, size: int) -> Basis:
@@ -112,25 +117,28 @@ def _coefficients(basis: Basis, functions: np.ndarray, k: int) -> np.ndarray:
     return basis.truncated(k).project(functions)
 
 
-def run_obcs12(inputs: MapInputs, params: DescriptorParams, progress: Progress = no_progress) -> FunctionalMaps:
-    k = check_method_k(params.k, inputs.basis_M, inputs.basis_N)
-    f_M, f_N = landmark_descriptors(inputs, params)
-    A, B = _coefficients(inputs.basis_M, f_M, k), _coefficients(inputs.basis_N, f_N, k)
-    lam_M, lam_N = normalised_eigenvalues(inputs.basis_M, inputs.basis_N, k)
+def run_obcs12(
+    pair: ShapePair, hints: Hints, params: DescriptorParams, progress: Progress = no_progress
+) -> FunctionalMaps:
+    k = check_method_k(params.k, pair.basis_M, pair.basis_N)
+    f_M, f_N = landmark_descriptors(pair, hints, params)
+    A, B = _coefficients(pair.basis_M, f_M, k), _coefficients(pair.basis_N, f_N, k)
+    lam_M, lam_N = normalised_eigenvalues(pair.basis_M, pair.basis_N, k)
     C_MN = descriptor_least_squares(A, B, lam_M, lam_N, params.mu)
     C_NM = descriptor_least_squares(B, A, lam_N, lam_M, params.mu)
     progress(1.0, "descriptor least squares solved")
     return FunctionalMaps(C_MN, C_NM)
 
 
-def run_no17(inputs: MapInputs, params: NO17Params, progress: Progress = no_progress) -> FunctionalMaps:
-    k = check_method_k(params.k, inputs.basis_M, inputs.basis_N)
-    f_M, f_N = curve_descriptors(inputs) if params.inputs == "curves" else landmark_descriptors(inputs, params)
-    A, B = _coefficients(inputs.basis_M, f_M, k), _coefficients(inputs.basis_N, f_N, k)
+def run_no17(pair: ShapePair, hints: Hints, params: NO17Params, progress: Progress = no_progress) -> FunctionalMaps:
+    k = check_method_k(params.k, pair.basis_M, pair.basis_N)
+    curves = params.inputs == "curves"
+    f_M, f_N = curve_descriptors(pair, hints) if curves else landmark_descriptors(pair, hints, params)
+    A, B = _coefficients(pair.basis_M, f_M, k), _coefficients(pair.basis_N, f_N, k)
     chosen = np.unique(np.linspace(0, f_M.shape[1] - 1, min(params.max_operators, f_M.shape[1])).astype(int))
-    X = multiplication_operators(inputs.basis_M, f_M[:, chosen], k)
-    Y = multiplication_operators(inputs.basis_N, f_N[:, chosen], k)
-    lam_M, lam_N = normalised_eigenvalues(inputs.basis_M, inputs.basis_N, k)
+    X = multiplication_operators(pair.basis_M, f_M[:, chosen], k)
+    Y = multiplication_operators(pair.basis_N, f_N[:, chosen], k)
+    lam_M, lam_N = normalised_eigenvalues(pair.basis_M, pair.basis_N, k)
     maps = []
     for step, (F_from, F_to, l_from, l_to, X_from, X_to) in enumerate(
         ((A, B, lam_M, lam_N, X, Y), (B, A, lam_N, lam_M, Y, X))
@@ -143,20 +151,20 @@ def run_no17(inputs: MapInputs, params: NO17Params, progress: Progress = no_prog
     return FunctionalMaps(maps[0], maps[1])
 
 
-CURVES = Plugin(
+CURVES = MethodPlugin(
     name="curves",
     description="Curve-constrained functional maps (Gehre et al. 2018): exact per-column solve",
     Params=CurvesParams,
     run=run_curves,
 )
-OBCS12 = Plugin(
+OBCS12 = MethodPlugin(
     name="obcs12",
     description="Descriptor preservation (WKS + wave kernel maps at landmarks) and Laplacian commutativity, "
     "least squares (Ovsjanikov et al. 2012)",
     Params=DescriptorParams,
     run=run_obcs12,
 )
-NO17 = Plugin(
+NO17 = MethodPlugin(
     name="no17",
     description="OBCS12 plus descriptor commutativity, L-BFGS (Nogneng and Ovsjanikov 2017); inputs='curves' "
     "gives it the curves as functions",

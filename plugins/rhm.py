@@ -44,19 +44,13 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from scipy.sparse.linalg import splu
 from scipy.spatial import cKDTree
 
-from curvefm.geometry import cotangent_laplacian
-from curvefm.plugins.zoomout import ZoomOutParams, convert_zoomout
-from curvefm.pointwise import (
-    MapProblem,
-    PointwiseMaps,
-    closest_points,
-    geodesic_embedding,
-    initial_maps,
-    surface,
-    unit_area_vertices,
-)
+from curvefm.fmap import FunctionalMaps
+from curvefm.geometry import Mesh, cotangent_laplacian
+from curvefm.plugins.zoomout import ZoomOutParams, convert_zoomout, zoomout_basis_size
+from curvefm.pointwise import PointwiseMaps, closest_points, geodesic_embedding, initial_maps, unit_area
 from curvefm.progress import Progress, no_progress, scaled
-from curvefm.registry import Plugin
+from curvefm.registry import ConverterPlugin
+from curvefm.spectral import ShapePair
 
 ENERGY_WINDOW = 5  # iterations over which the energy change is measured
 
@@ -82,11 +76,6 @@ class RhmParams(BaseModel):
     projection: Literal["vertex", "triangle"] = Field(
         "vertex", description="map each vertex to the closest vertex (fast) or closest point on a triangle"
     )
-
-    def basis_size(self) -> int:
-        """Basis functions per shape this converter works with. A MapProblem whose bases are smaller makes
-        it compute larger ones itself; callers holding stored bases of this size should pass them."""
-        return self.init_zoomout.k_final if self.init == "zoomout" else 0
 
     @model_validator(mode="after")
     def _consistent(self):
@@ -119,11 +108,11 @@ class _Map:
     X: np.ndarray
 
 
-def prepare_shape(vertices: np.ndarray, faces: np.ndarray, params: RhmParams) -> _Shape:
-    unit = unit_area_vertices(vertices, faces)
-    L, mass = cotangent_laplacian(unit, faces)
-    X = geodesic_embedding(surface(unit, faces), L, mass, params.embedding_dim, params.samples)
-    return _Shape(faces, L, mass, X)
+def prepare_shape(mesh: Mesh, params: RhmParams) -> _Shape:
+    unit = unit_area(mesh)
+    L, mass = cotangent_laplacian(unit.vertices, unit.faces)
+    X = geodesic_embedding(unit, L, mass, params.embedding_dim, params.samples)
+    return _Shape(unit.faces, L, mass, X)
 
 
 def vertex_rows(p2p: np.ndarray, n_image: int) -> sp.csr_matrix:
@@ -191,22 +180,30 @@ def reversible_harmonic_maps(
     return PointwiseMaps(p2p_NM=NM.p2p, p2p_MN=MN.p2p)
 
 
-def convert_rhm(problem: MapProblem, params: RhmParams, progress: Progress = no_progress) -> PointwiseMaps:
+def convert_rhm(
+    pair: ShapePair, fmaps: FunctionalMaps, params: RhmParams, progress: Progress = no_progress
+) -> PointwiseMaps:
     if params.init == "zoomout":
-        maps = convert_zoomout(problem, params.init_zoomout, scaled(progress, 0.0, 0.3))
+        maps = convert_zoomout(pair, fmaps, params.init_zoomout, scaled(progress, 0.0, 0.3))
     else:
         progress(0.0, "initial maps (nearest neighbours)")
-        maps = initial_maps(problem)
+        maps = initial_maps(pair, fmaps)
     progress(0.3, "geodesic embedding of the source")
-    shape_M = prepare_shape(problem.vertices_M, problem.faces_M, params)
+    shape_M = prepare_shape(pair.mesh_M, params)
     progress(0.35, "geodesic embedding of the target")
-    shape_N = prepare_shape(problem.vertices_N, problem.faces_N, params)
+    shape_N = prepare_shape(pair.mesh_N, params)
     return reversible_harmonic_maps(maps, shape_M, shape_N, params, scaled(progress, 0.4, 1.0))
 
 
-RHM = Plugin(
+def rhm_basis_size(params: RhmParams) -> int:
+    """The zoomout start's basis size (none for the nearest-neighbour start)."""
+    return zoomout_basis_size(params.init_zoomout) if params.init == "zoomout" else 0
+
+
+RHM = ConverterPlugin(
     name="rhm",
     description="Reversible Harmonic Maps (Ezuz, Solomon, Ben-Chen 2018), both directions at once",
     Params=RhmParams,
     run=convert_rhm,
+    basis_size=rhm_basis_size,
 )

@@ -57,7 +57,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from curvefm.errors import CurvefmError
 from curvefm.geometry import Mesh, edge_weight_graph, shortest_path
-from curvefm.registry import Plugin
+from curvefm.registry import TracerPlugin
 
 # ----------------------------------------------------------------------------------------------------------
 # Shared helpers
@@ -116,16 +116,13 @@ class GeodesicParams(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
 
-def trace_geodesic(
-    mesh: Mesh, start: int, end: int, params: GeodesicParams | dict | None = None
-) -> np.ndarray:
+def trace_geodesic(mesh: Mesh, start: int, end: int, params: GeodesicParams) -> np.ndarray:
     """Shortest edge path from ``start`` to ``end`` (internal ids, both included), Euclidean edge lengths."""
-    GEODESIC.parse_params(params)  # rejects unknown fields
     start, end = _check_endpoints(mesh, start, end)
     return _trace(mesh, mesh.edge_graph, start, end)
 
 
-GEODESIC = Plugin(
+GEODESIC = TracerPlugin(
     name="geodesic",
     description="Shortest path along mesh edges (Dijkstra, Euclidean edge lengths)",
     Params=GeodesicParams,
@@ -291,16 +288,13 @@ def anisotropic_graph(mesh: Mesh, params: AnisotropicParams) -> sp.csr_matrix:
     )
 
 
-def trace_anisotropic(
-    mesh: Mesh, start: int, end: int, params: AnisotropicParams | dict | None = None
-) -> np.ndarray:
+def trace_anisotropic(mesh: Mesh, start: int, end: int, params: AnisotropicParams) -> np.ndarray:
     """Shortest path under the curvature-aligned metric (internal ids, start and end included)."""
-    params = ANISOTROPIC.parse_params(params)
     start, end = _check_endpoints(mesh, start, end)
     return _trace(mesh, anisotropic_graph(mesh, params), start, end)
 
 
-ANISOTROPIC = Plugin(
+ANISOTROPIC = TracerPlugin(
     name="anisotropic",
     description="Shortest path under a curvature-aligned Riemannian metric (Campen et al. 2013): follows "
     "ridges and valleys, cheap along sharp features and normal cost across them",

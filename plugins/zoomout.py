@@ -19,10 +19,11 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from curvefm.pointwise import MapProblem, PointwiseMaps, bases_with, initial_maps, nearest_neighbors, spread_samples
+from curvefm.fmap import FunctionalMaps
+from curvefm.pointwise import PointwiseMaps, bases_with, initial_maps, nearest_neighbors, spread_samples
 from curvefm.progress import Progress, no_progress, scaled
-from curvefm.registry import Plugin
-from curvefm.spectral import Basis
+from curvefm.registry import ConverterPlugin
+from curvefm.spectral import Basis, ShapePair
 
 
 class ZoomOutParams(BaseModel):
@@ -47,11 +48,6 @@ class ZoomOutParams(BaseModel):
     search: Literal["faiss", "blocked"] = Field(
         "faiss", description="exact nearest-neighbour backend: faiss IndexFlatL2, or blocked numpy matrix products"
     )
-
-    def basis_size(self) -> int:
-        """Basis functions per shape this converter works with. A MapProblem whose bases are smaller makes
-        it compute larger ones itself; callers holding stored bases of this size should pass them."""
-        return self.k_final
 
     @model_validator(mode="after")
     def _sizes_agree(self):
@@ -120,23 +116,28 @@ def zoomout(
     return PointwiseMaps(p2p_NM=p_NM, p2p_MN=p_MN)
 
 
-def convert_zoomout(problem: MapProblem, params: ZoomOutParams, progress: Progress = no_progress) -> PointwiseMaps:
+def convert_zoomout(
+    pair: ShapePair, fmaps: FunctionalMaps, params: ZoomOutParams, progress: Progress = no_progress
+) -> PointwiseMaps:
     progress(0.0, "initial maps (nearest neighbours)")
-    maps = initial_maps(problem, params.search)
-    basis_M, basis_N = bases_with(problem, params.k_final, scaled(progress, 0.05, 0.2))
+    maps = initial_maps(pair, fmaps, params.search)
+    basis_M, basis_N = bases_with(pair, params.k_final, scaled(progress, 0.05, 0.2))
     samples = None
     if params.samples is not None:
         progress(0.2, f"{params.samples} farthest-point samples per shape")
-        samples = (
-            spread_samples(problem.vertices_M, problem.faces_M, params.samples),
-            spread_samples(problem.vertices_N, problem.faces_N, params.samples),
-        )
+        samples = (spread_samples(pair.mesh_M, params.samples), spread_samples(pair.mesh_N, params.samples))
     return zoomout(maps, basis_M, basis_N, params, samples, scaled(progress, 0.25, 1.0))
 
 
-ZOOMOUT = Plugin(
+def zoomout_basis_size(params: ZoomOutParams) -> int:
+    """The last map's basis size: a pair whose bases are smaller makes ZoomOut compute larger ones itself."""
+    return params.k_final
+
+
+ZOOMOUT = ConverterPlugin(
     name="zoomout",
     description="ZoomOut spectral upsampling (Melzi et al. 2019) from k_init to k_final, optionally on samples",
     Params=ZoomOutParams,
     run=convert_zoomout,
+    basis_size=zoomout_basis_size,
 )

@@ -7,7 +7,6 @@ from typing import Annotated
 from fastapi import APIRouter, Query, Response
 
 from curvefm.errors import CurvefmError
-from curvefm.matching import converter_basis_size
 from curvefm.service.deps import ServicesDep, job_model
 from curvefm.service.errors import require_plugin
 from curvefm.service.models import (
@@ -105,8 +104,9 @@ def refine(session_id: str, body: RefineRequest, services: ServicesDep) -> JobIn
     ``map_target_to_source.txt`` (line j: source vertex for target vertex j, file ids), the other direction,
     the same maps as ``.npy``, both functional maps and a textured target OBJ."""
     record = services.sessions.record(session_id)
-    parsed = require_plugin("converter", body.converter).parse_params(body.params)
-    size = converter_basis_size(parsed)
+    plugin = require_plugin("converter", body.converter)
+    parsed = plugin.parse_params(body.params)
+    size = plugin.basis_size(parsed)
     if size:  # a basis the shapes cannot have is a bad request now, not a failed job later
         smallest = min(services.sessions.mesh(s).n_vertices for s in (record.source, record.target))
         check_k(size, smallest, f"the smaller shape of session {session_id}")

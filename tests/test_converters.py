@@ -17,7 +17,7 @@ import pytest
 from curvefm import registry
 from curvefm.errors import CurvefmError
 from curvefm.evaluation import evaluate_map, ground_truth_curves, ground_truth_for, score
-from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K, DEFAULT_SAMPLES
+from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K, DEFAULT_SAMPLES, FunctionalMaps
 from curvefm.geometry import load_mesh
 from curvefm.matching import MatchResult, match
 from curvefm.pointwise import closest_points
@@ -63,12 +63,15 @@ def cat_lion(shared_data, store) -> Case:
     return ten_curve_case(shared_data, store, CAT_LION)
 
 
-def refined_error(case: Case, converter: str, params: dict, problem=None, progress=no_progress) -> float:
-    plugin = registry.get("converter", converter)
-    maps = plugin.run(problem or case.result.problem(), plugin.parse_params(params), progress)
-    assert maps.p2p_NM.shape == (case.result.mesh_N.n_vertices,)
-    assert maps.p2p_MN.shape == (case.result.mesh_M.n_vertices,)
-    return evaluate_map(maps.p2p_MN, case.truth, case.result.mesh_N).mean_area
+def refined_error(
+    case: Case, converter: str, params: dict, pair=None, fmaps=None, progress=no_progress
+) -> float:
+    plugin, parsed = registry.load("converter", converter, params)
+    maps = plugin.run(pair or case.result.pair, fmaps or case.result.fmaps, parsed, progress)
+    mesh_M, mesh_N = case.result.pair.meshes
+    assert maps.p2p_NM.shape == (mesh_N.n_vertices,)
+    assert maps.p2p_MN.shape == (mesh_M.n_vertices,)
+    return evaluate_map(maps.p2p_MN, case.truth, mesh_N).mean_area
 
 
 @pytest.mark.parametrize(
@@ -102,22 +105,17 @@ def test_rhm_reports_progress_and_stops_when_cancelled(faust):
 
 
 def test_zoomout_computes_a_larger_basis_than_the_sessions(faust):
-    problem = faust.result.problem()
-    small = dataclasses.replace(
-        problem,
-        basis_M=problem.basis_M.truncated(40),
-        basis_N=problem.basis_N.truncated(40),
-        C_MN=problem.C_MN[:40, :40],
-        C_NM=problem.C_NM[:40, :40],
-    )
+    small = faust.result.pair.truncated(40)
+    fmaps = FunctionalMaps(faust.result.fmaps.C_MN[:40, :40], faust.result.fmaps.C_NM[:40, :40])
     messages = []
-    error = refined_error(faust, "zoomout", {"k_final": 60, "step": 10}, small, lambda f, m: messages.append(m))
+    params = {"k_final": 60, "step": 10}
+    error = refined_error(faust, "zoomout", params, small, fmaps, lambda f, m: messages.append(m))
     assert any("computing a 60-function basis (the session's has 40)" in m for m in messages)
     assert error < faust.baseline
 
 
 def test_refine_job_runs_rhm_with_progress_through_the_job_api(faust, store):
-    mesh_M, mesh_N = faust.result.mesh_M, faust.result.mesh_N
+    mesh_M, mesh_N = faust.result.pair.meshes
     curves = []
     for i, (path_M, path_N) in enumerate(faust.curves):
         ids_M, ids_N = mesh_M.file_ids[path_M].tolist(), mesh_N.file_ids[path_N].tolist()

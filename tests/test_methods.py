@@ -7,10 +7,17 @@ from shapes import basis_of, stretched_ellipsoid_pair
 from curvefm import registry
 from curvefm.errors import CurvefmError
 from curvefm.evaluation import CurvePool, ground_truth_for
-from curvefm.fmap import DescriptorEnergy, MapInputs, curve_endpoints, descriptor_least_squares, lbfgs
+from curvefm.fmap import DescriptorEnergy, Hints, curve_endpoints, descriptor_least_squares, lbfgs
 from curvefm.geometry import build_mesh, check_edge_path, load_mesh, shortest_path
 from curvefm.pointwise import pointwise_from_fmap
-from curvefm.spectral import curve_function, multiplication_operators, wave_kernel_maps, wave_kernel_signature
+from curvefm.progress import no_progress
+from curvefm.spectral import (
+    ShapePair,
+    curve_function,
+    multiplication_operators,
+    wave_kernel_maps,
+    wave_kernel_signature,
+)
 
 
 @pytest.fixture(scope="module")
@@ -19,10 +26,16 @@ def pair():
 
 
 @pytest.fixture(scope="module")
-def inputs(pair):
+def shapes(pair) -> ShapePair:
     M, bM, N, bN = pair
+    return ShapePair(M, N, bM, bN)
+
+
+@pytest.fixture(scope="module")
+def hints(pair) -> Hints:
+    M = pair[0]
     curves = [(p, p) for p in (shortest_path(M.edge_graph, a, b) for a, b in ((0, 600), (100, 900), (250, 1100)))]
-    return MapInputs.from_curves(M, N, bM, bN, curves)
+    return Hints.from_curves(curves)
 
 
 def random_problem(k_from=12, k_to=10, d=30, seed=0):
@@ -95,31 +108,31 @@ def test_curve_function_and_multiplication_operators(pair):
 @pytest.mark.parametrize("name, params", [("curves", {}), ("obcs12", {"k": 20, "spectrum": 40}),
                                           ("no17", {"k": 20, "spectrum": 40}),
                                           ("no17", {"k": 20, "spectrum": 40, "inputs": "curves"})])  # fmt: skip
-def test_every_method_maps_a_shape_to_its_stretched_copy(inputs, name, params):
-    plugin = registry.get("method", name)
-    maps = plugin.run(inputs, plugin.parse_params(params))
+def test_every_method_maps_a_shape_to_its_stretched_copy(shapes, hints, name, params):
+    plugin, parsed = registry.load("method", name, params)
+    maps = plugin.run(shapes, hints, parsed, no_progress)
     k = params.get("k", 40)
     assert maps.C_MN.shape == maps.C_NM.shape == (k, k)
     # same connectivity, vertex i <-> vertex i: the pointwise map must beat a random one by far
-    N = inputs.mesh_N
-    p2p_MN = pointwise_from_fmap(maps.C_NM, inputs.basis_N, inputs.basis_M)
+    N = shapes.mesh_N
+    p2p_MN = pointwise_from_fmap(maps.C_NM, shapes.basis_N, shapes.basis_M)
     error = np.linalg.norm(N.vertices[p2p_MN] - N.vertices, axis=1).mean()
     shuffled = np.linalg.norm(N.vertices[np.random.default_rng(0).permutation(N.n_vertices)] - N.vertices, axis=1)
     assert error < 0.2 * shuffled.mean()  # measured: curves 0.015, NO17 0.02-0.07, OBCS12 0.12 of it
 
 
-def test_methods_report_bad_input(inputs):
+def test_methods_report_bad_input(shapes, hints):
     with pytest.raises(CurvefmError, match="unknown method 'magic'; installed methods: curves, no17, obcs12"):
         registry.get("method", "magic")
     with pytest.raises(CurvefmError, match="bad parameters for 'no17': inputs"):
         registry.get("method", "no17").parse_params({"inputs": "pictures"})
     plugin = registry.get("method", "obcs12")
     with pytest.raises(CurvefmError, match="k = 300 but the bases have only 40"):
-        plugin.run(inputs, plugin.parse_params({"k": 300}))
-    no_curves = MapInputs(inputs.mesh_M, inputs.mesh_N, inputs.basis_M, inputs.basis_N, (), np.zeros((0, 2), int))
+        plugin.run(shapes, hints, plugin.parse_params({"k": 300}), no_progress)
     with pytest.raises(CurvefmError, match="at least one landmark"):
-        plugin.run(no_curves, plugin.parse_params({"k": 20, "spectrum": 40}))
-    descriptors_alone = plugin.run(no_curves, plugin.parse_params({"k": 20, "spectrum": 40, "landmarks": False}))
+        plugin.run(shapes, Hints(), plugin.parse_params({"k": 20, "spectrum": 40}), no_progress)
+    alone = plugin.parse_params({"k": 20, "spectrum": 40, "landmarks": False})
+    descriptors_alone = plugin.run(shapes, Hints(), alone, no_progress)
     assert descriptors_alone.C_MN.shape == (20, 20)  # wave kernel signatures need no landmarks
 
 

@@ -1,4 +1,5 @@
-"""Plugins through entry points: built-ins listed, a third-party package installed and used, bad names."""
+"""Plugins through entry points: built-ins listed, a third-party package installed and used, bad names, a
+plugin registered under the wrong kind."""
 
 import json
 import os
@@ -16,7 +17,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict
 
 from curvefm.geometry.graph_paths import shortest_path
-from curvefm.registry import Plugin
+from curvefm.registry import TracerPlugin
 
 
 class Params(BaseModel):
@@ -28,7 +29,7 @@ def trace(mesh, start, end, params):
     return shortest_path(mesh.edge_graph, start, end)
 
 
-HOPS = Plugin(name="hops", description="a lab member's tracer", Params=Params, run=trace)
+HOPS = TracerPlugin(name="hops", description="a lab member's tracer", Params=Params, run=trace)
 '''
 
 PYPROJECT = '''
@@ -37,12 +38,30 @@ requires = ["setuptools"]
 build-backend = "setuptools.build_meta"
 
 [project]
-name = "curvefm-hops"
+name = "{name}"
 version = "0.1"
 
 [project.entry-points."curvefm.tracers"]
-hops = "curvefm_hops:HOPS"
+{entry_point}
 '''
+
+
+def pip_install(tmp_path, name: str, entry_point: str, module: str = "") -> dict:
+    """Install the distribution ``name`` (with ``module`` as its one module, named after it, if given) that
+    registers ``entry_point`` (a line ``name = "module:object"``) under ``curvefm.tracers``; returns the
+    environment in which a subprocess sees it."""
+    package = tmp_path / name
+    package.mkdir()
+    (package / "pyproject.toml").write_text(PYPROJECT.format(name=name, entry_point=entry_point))
+    if module:
+        (package / f"{name.replace('-', '_')}.py").write_text(module)
+    site = tmp_path / f"{name}-site"
+    subprocess.run(
+        [sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--no-build-isolation",
+         "--target", str(site), str(package)],
+        check=True, capture_output=True,
+    )  # fmt: skip
+    return {**os.environ, "PYTHONPATH": str(site)}
 
 
 def test_builtin_plugins_are_registered():
@@ -64,17 +83,7 @@ def test_unknown_plugins_and_parameters_are_named():
 
 
 def test_a_third_party_tracer_installed_with_pip_is_listed_and_used(tmp_path):
-    package = tmp_path / "pkg"
-    package.mkdir()
-    (package / "pyproject.toml").write_text(PYPROJECT)
-    (package / "curvefm_hops.py").write_text(THIRD_PARTY_PLUGIN)
-    site = tmp_path / "site"
-    subprocess.run(
-        [sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--no-build-isolation",
-         "--target", str(site), str(package)],
-        check=True, capture_output=True,
-    )
-    env = {**os.environ, "PYTHONPATH": str(site)}
+    env = pip_install(tmp_path, "curvefm-hops", 'hops = "curvefm_hops:HOPS"', THIRD_PARTY_PLUGIN)
     listed = subprocess.run(
         [sys.executable, "-m", "curvefm.cli", "plugins", "--json"], env=env, check=True, capture_output=True, text=True
     )
@@ -90,3 +99,15 @@ def test_a_third_party_tracer_installed_with_pip_is_listed_and_used(tmp_path):
     used = subprocess.run([sys.executable, "-c", script], env=env, check=True, capture_output=True, text=True)
     start, end, length = used.stdout.split()
     assert (start, end) == ("0", "600") and int(length) > 2
+
+
+def test_a_plugin_of_another_kind_is_refused_naming_its_distribution_and_entry_point(tmp_path):
+    value = "curvefm.plugins.converters:NEAREST_NEIGHBOR"  # a converter, registered as a tracer
+    env = pip_install(tmp_path, "curvefm-mislabelled", f'nearest = "{value}"')
+    script = "from curvefm import registry; registry.get('tracer', 'nearest')"
+    loaded = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True)
+    assert loaded.returncode != 0
+    message = loaded.stderr.strip().splitlines()[-1]
+    assert message.startswith("curvefm.errors.CurvefmError: the distribution 'curvefm-mislabelled'")
+    assert f"'nearest = {value}'" in message and "'curvefm.tracers'" in message
+    assert "ConverterPlugin, not a curvefm.registry.TracerPlugin" in message

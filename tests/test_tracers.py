@@ -13,8 +13,10 @@ from curvefm.errors import CurvefmError
 from curvefm.geometry import build_mesh, check_edge_path, load_mesh
 from curvefm.plugins import tracers
 from curvefm.plugins.tracers import ANISOTROPIC, GEODESIC
+from curvefm.session import trace_curve
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+GEODESIC_DEFAULTS = GEODESIC.parse_params({})
 ANISOTROPIC_DEFAULTS = ANISOTROPIC.parse_params({})
 
 
@@ -93,7 +95,7 @@ def test_geodesic_length_equals_dijkstra_distance(wolf, radius, monkeypatch):
     near = [int(np.argsort(dist[i])[40]) for i in range(len(starts))]
     for i, start in enumerate(starts):
         for end in (ends[i], near[i]):
-            path = GEODESIC.run(wolf, int(start), int(end), None)
+            path = GEODESIC.run(wolf, int(start), int(end), GEODESIC_DEFAULTS)
             assert edge_length(wolf, path) == pytest.approx(dist[i, end], rel=1e-12)
 
 
@@ -116,8 +118,8 @@ def test_anisotropic_follows_the_crest(slope):
     mesh, off_crest, ny = roof(slope)
     row = ny // 2 - 4  # both endpoints 4 rows (about 0.8) down the same slope, 12 apart along the crest
     start, end = row, (mesh.n_vertices // ny - 1) * ny + row
-    geodesic = GEODESIC.run(mesh, start, end, None)
-    anisotropic = ANISOTROPIC.run(mesh, start, end, None)
+    geodesic = GEODESIC.run(mesh, start, end, GEODESIC_DEFAULTS)
+    anisotropic = ANISOTROPIC.run(mesh, start, end, ANISOTROPIC_DEFAULTS)
     check_edge_path(mesh.edge_graph, anisotropic)
     # the straight path stays down the slope; the anisotropic one climbs to the crest and runs along it
     assert off_crest[geodesic].mean() > 0.6
@@ -140,7 +142,7 @@ def test_wrong_direction_would_not_follow_the_crest(monkeypatch):
 
     monkeypatch.setattr(tracers, "feature_field", rotated)
     row = ny // 2 - 4
-    path = ANISOTROPIC.run(mesh, row, (mesh.n_vertices // ny - 1) * ny + row, None)
+    path = ANISOTROPIC.run(mesh, row, (mesh.n_vertices // ny - 1) * ny + row, ANISOTROPIC_DEFAULTS)
     assert off_crest[path].mean() > 0.5
 
 
@@ -164,8 +166,8 @@ def test_anisotropic_path_is_scale_invariant(factor):
     scaled = build_mesh(bumpy * factor + np.array([5.0, -2.0, 1.0]) * factor, mesh.faces)
     rng = np.random.default_rng(4)
     for start, end in rng.integers(0, mesh.n_vertices, (8, 2)):
-        a = ANISOTROPIC.run(mesh, int(start), int(end), None)
-        b = ANISOTROPIC.run(scaled, int(start), int(end), None)
+        a = ANISOTROPIC.run(mesh, int(start), int(end), ANISOTROPIC_DEFAULTS)
+        b = ANISOTROPIC.run(scaled, int(start), int(end), ANISOTROPIC_DEFAULTS)
         np.testing.assert_array_equal(a, b)
 
 
@@ -195,7 +197,7 @@ def test_unknown_params_field_is_rejected(plugin):
     with pytest.raises(CurvefmError, match=f"bad parameters for '{plugin.name}'.*colour"):
         plugin.parse_params({"colour": "red"})
     with pytest.raises(CurvefmError, match="colour"):
-        plugin.run(mesh, 0, 3, {"colour": "red"})
+        trace_curve(mesh, waypoints=[0, 3], tracer=plugin.name, params={"colour": "red"})
 
 
 def test_bad_parameter_values_are_rejected():
@@ -213,9 +215,9 @@ def test_endpoints_on_different_components(plugin):
     mesh = build_mesh(vertices, faces, name="two-pieces")
     assert mesh.report.components == 2
     with pytest.raises(CurvefmError, match="different connected components"):
-        plugin.run(mesh, 0, a.n_vertices + 3, None)
+        plugin.run(mesh, 0, a.n_vertices + 3, plugin.parse_params({}))
     # within one component it works
-    assert plugin.run(mesh, a.n_vertices, a.n_vertices + 3, None)[-1] == a.n_vertices + 3
+    assert plugin.run(mesh, a.n_vertices, a.n_vertices + 3, plugin.parse_params({}))[-1] == a.n_vertices + 3
 
 
 @pytest.mark.parametrize("plugin", [GEODESIC, ANISOTROPIC], ids=lambda p: p.name)
@@ -223,6 +225,6 @@ def test_endpoints_on_different_components(plugin):
 def test_bad_endpoints(plugin, bad):
     mesh, _, _ = roof(1.0, nx=6, ny=5)
     with pytest.raises(CurvefmError, match="start vertex"):
-        plugin.run(mesh, bad, 0, None)
+        plugin.run(mesh, bad, 0, plugin.parse_params({}))
     with pytest.raises(CurvefmError, match="end vertex"):
-        plugin.run(mesh, 0, bad, None)
+        plugin.run(mesh, 0, bad, plugin.parse_params({}))

@@ -6,7 +6,6 @@ store, refinement results into ``<data>/results/<job id>/`` (published all at on
 
 from __future__ import annotations
 
-import dataclasses
 import shutil
 import tempfile
 from pathlib import Path
@@ -15,9 +14,10 @@ import numpy as np
 
 from curvefm import registry
 from curvefm.errors import CurvefmError
-from curvefm.matching import MatchResult, converter_basis_size, write_outputs
+from curvefm.fmap import FunctionalMaps
+from curvefm.matching import MatchResult, write_outputs
 from curvefm.progress import scaled
-from curvefm.session import SessionRecord, build_solver, internal_paths, load_pair
+from curvefm.session import SessionRecord, ShapePair, build_solver, internal_paths, load_pair
 from curvefm.store import Store, params_key
 from curvefm.workers.context import running_job
 
@@ -29,8 +29,9 @@ def compute_basis(
     with running_job() as job:
         store = Store(data_dir)
         mesh = store.get_mesh(mesh_id)
-        canonical = registry.get("basis", plugin).parse_params(params).model_dump()
-        store.ensure_basis(mesh, k, plugin, canonical, job.progress)
+        _, parsed = registry.load("basis", plugin, params)
+        store.ensure_basis(mesh, k, plugin, parsed, job.progress)
+        canonical = parsed.model_dump()
         return {
             "shape": mesh_id,
             "k": k,
@@ -49,24 +50,22 @@ def refine(data_dir: str, session: dict, converter: str = "nearest-neighbor", pa
     """
     with running_job() as job:
         record = SessionRecord.model_validate(session)
-        plugin = registry.get("converter", converter)
-        parsed = plugin.parse_params(params)
+        plugin, parsed = registry.load("converter", converter, params)
         if not record.curves:
             raise CurvefmError(f"session {record.id} has no curves; add at least one before refining")
         job.progress(0.0, "loading shapes and bases")
         store = Store(data_dir)
         pair = load_pair(store, record)
-        size = converter_basis_size(parsed)
+        size = plugin.basis_size(parsed)
         if size > record.k:  # e.g. ZoomOut's k_final: compute (or find) and keep the larger bases
             larger = (store.ensure_basis(m, size, record.basis_plugin, record.basis_params) for m in pair.meshes)
-            pair = dataclasses.replace(pair, **dict(zip(("basis_M", "basis_N"), larger, strict=True)))
+            pair = ShapePair(*pair.meshes, *larger)
         solver, _ = build_solver(record, pair)
         paths = [internal_paths(pair, curve) for curve in record.curves]
-        result = MatchResult(
-            pair.mesh_M, pair.mesh_N, pair.basis_M, pair.basis_N, solver.C_MN, solver.C_NM, paths=paths
-        )
         job.progress(0.1, f"converting with '{converter}'")
-        result.maps = plugin.run(result.problem(), parsed, scaled(job.progress, 0.1, 0.9))
+        fmaps = FunctionalMaps(solver.C_MN, solver.C_NM)
+        maps = plugin.run(pair, fmaps, parsed, scaled(job.progress, 0.1, 0.9))
+        result = MatchResult(pair, fmaps, maps, paths=tuple(paths))
         job.progress(0.9, "writing results")
         files = _publish(Path(data_dir) / "results" / job.id, lambda out: _write_result_files(result, out))
         job.progress(1.0, "done")
@@ -76,8 +75,8 @@ def refine(data_dir: str, session: dict, converter: str = "nearest-neighbor", pa
 def _write_result_files(result: MatchResult, out: Path) -> None:
     write_outputs(result, out)
     for name, p2p, image, domain in (
-        ("p2p_target_to_source.npy", result.maps.p2p_NM, result.mesh_M, result.mesh_N),
-        ("p2p_source_to_target.npy", result.maps.p2p_MN, result.mesh_N, result.mesh_M),
+        ("p2p_target_to_source.npy", result.maps.p2p_NM, result.pair.mesh_M, result.pair.mesh_N),
+        ("p2p_source_to_target.npy", result.maps.p2p_MN, result.pair.mesh_N, result.pair.mesh_M),
     ):
         np.save(out / name, domain.per_file_vertex(image.file_ids[p2p], -1))
 

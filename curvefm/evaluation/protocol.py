@@ -121,8 +121,8 @@ def score(result: MatchResult, truth: GroundTruth) -> dict:
     """Errors of both pointwise maps: source -> target measured on the target, and the reverse."""
     reverse = (truth.ids_Y, truth.ids_X)
     return {
-        "source_to_target": evaluate_map(result.maps.p2p_MN, truth, result.mesh_N).as_dict(),
-        "target_to_source": evaluate_map(result.maps.p2p_NM, reverse, result.mesh_M).as_dict(),
+        "source_to_target": evaluate_map(result.maps.p2p_MN, truth, result.pair.mesh_N).as_dict(),
+        "target_to_source": evaluate_map(result.maps.p2p_NM, reverse, result.pair.mesh_M).as_dict(),
     }
 
 

@@ -17,7 +17,7 @@ from curvefm.fmap.column_solve import (
     solve_both,
     solve_columns,
 )
-from curvefm.fmap.maps import FunctionalMaps, MapInputs, curve_endpoints
+from curvefm.fmap.maps import FunctionalMaps, Hints, curve_endpoints
 from curvefm.fmap.reference_solvers import conjugate_gradient_solve, quasi_newton_solve
 from curvefm.fmap.restriction import DEFAULT_SAMPLES, resample, restrict, restriction_operator
 from curvefm.fmap.solver import DEFAULT_ALPHA, DEFAULT_K, CurveMapSolver, CurveTerm
@@ -32,7 +32,7 @@ __all__ = [
     "DescriptorEnergy",
     "FunctionTransfer",
     "FunctionalMaps",
-    "MapInputs",
+    "Hints",
     "PARALLEL_MIN_SIZE",
     "RIDGE",
     "check_method_k",

@@ -1,8 +1,8 @@
 """Functional-map methods: ways of computing ``C_MN`` and ``C_NM`` from correspondence hints.
 
-A method plugin (entry-point group ``curvefm.methods``) receives a :class:`MapInputs` (both meshes and bases,
-corresponding curves and landmarks) and returns a :class:`FunctionalMaps`. Built in: ``curves`` (ours, the
-paper), and the descriptor baselines the paper compares against:
+A method plugin (entry-point group ``curvefm.methods``) receives a ``ShapePair`` (both meshes and bases) and
+:class:`Hints` (corresponding curves and landmarks) and returns a :class:`FunctionalMaps`. Built in:
+``curves`` (ours, the paper), and the descriptor baselines the paper compares against:
 
 * ``obcs12`` (Ovsjanikov et al. 2012): least squares on descriptor preservation ``C F_M = F_N`` plus Laplacian
   commutativity, with wave kernel signatures and wave kernel maps at the landmarks. Exact, per row of C.

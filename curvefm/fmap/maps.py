@@ -3,34 +3,27 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from curvefm.geometry import Mesh
-from curvefm.spectral import Basis
-
 
 @dataclass(frozen=True)
-class MapInputs:
-    """Both shapes with their bases, and the correspondence hints (internal vertex ids).
+class Hints:
+    """Correspondences a map method starts from (internal vertex ids; the shapes are a ``ShapePair``).
 
     ``curves`` are corresponding vertex paths ``(path_M, path_N)`` with their ``weights`` (empty: all 1);
     ``landmarks`` (m x 2) are corresponding vertices, by default the curves' endpoints (what the paper gives
     the descriptor baselines).
     """
 
-    mesh_M: Mesh
-    mesh_N: Mesh
-    basis_M: Basis
-    basis_N: Basis
-    curves: tuple[tuple[np.ndarray, np.ndarray], ...]
-    landmarks: np.ndarray
+    curves: tuple[tuple[np.ndarray, np.ndarray], ...] = ()
+    landmarks: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
     weights: tuple[float, ...] = ()
 
     @classmethod
-    def from_curves(cls, mesh_M, mesh_N, basis_M, basis_N, curves, weights=()) -> MapInputs:
-        return cls(mesh_M, mesh_N, basis_M, basis_N, tuple(curves), curve_endpoints(curves), tuple(weights))
+    def from_curves(cls, curves, weights=()) -> Hints:
+        return cls(tuple(curves), curve_endpoints(curves), tuple(weights))
 
 
 @dataclass(frozen=True)

@@ -3,7 +3,6 @@ converters share, exact high-dimensional neighbour search, and geodesic embeddin
 """
 
 from curvefm.pointwise.conversion import (
-    MapProblem,
     PointwiseMaps,
     fmap_from_pointwise,
     pointwise_from_both,
@@ -19,11 +18,10 @@ from curvefm.pointwise.geodesic_mds import (
     vertex_faces,
 )
 from curvefm.pointwise.neighbors import BLOCK, nearest_neighbors
-from curvefm.pointwise.refinement import bases_with, initial_maps, spread_samples, surface, unit_area_vertices
+from curvefm.pointwise.refinement import bases_with, initial_maps, spread_samples, unit_area
 
 __all__ = [
     "BLOCK",
-    "MapProblem",
     "PointwiseMaps",
     "bases_with",
     "biharmonic_extension",
@@ -38,7 +36,6 @@ __all__ = [
     "pointwise_from_fmap",
     "smacof",
     "spread_samples",
-    "surface",
-    "unit_area_vertices",
+    "unit_area",
     "vertex_faces",
 ]

@@ -1,4 +1,4 @@
-"""Pointwise maps and the input every converter receives.
+"""Pointwise maps, and their conversion from functional maps by nearest neighbours in spectral embeddings.
 
 Direction convention: ``p2p_NM[j]`` is the vertex of M matched to vertex j of N (a map N -> M). The
 functional map ``C_MN`` (functions on M -> functions on N) yields ``p2p_NM`` (Ovsjanikov et al. 2012): the
@@ -14,20 +14,6 @@ import numpy as np
 
 from curvefm.pointwise.neighbors import nearest_neighbors
 from curvefm.spectral import Basis
-
-
-@dataclass(frozen=True)
-class MapProblem:
-    """What a converter works from: both meshes' vertices and faces, both bases, and both maps."""
-
-    vertices_M: np.ndarray
-    faces_M: np.ndarray
-    basis_M: Basis
-    vertices_N: np.ndarray
-    faces_N: np.ndarray
-    basis_N: Basis
-    C_MN: np.ndarray
-    C_NM: np.ndarray
 
 
 @dataclass(frozen=True)

@@ -10,52 +10,49 @@ Map directions follow :mod:`curvefm.pointwise.conversion`: ``p2p_NM[j]`` is the 
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from curvefm import registry
-from curvefm.geometry import Mesh, MeshReport, farthest_point_sampling
-from curvefm.pointwise.conversion import MapProblem, PointwiseMaps, pointwise_from_both
+from curvefm.fmap import FunctionalMaps
+from curvefm.geometry import Mesh, farthest_point_sampling
+from curvefm.pointwise.conversion import PointwiseMaps, pointwise_from_both
 from curvefm.progress import Progress, no_progress, scaled
-from curvefm.spectral import Basis
+from curvefm.spectral import Basis, ShapePair
 
 
-def surface(vertices: np.ndarray, faces: np.ndarray) -> Mesh:
-    """A :class:`Mesh` around arrays that already are a valid internal mesh (those of a MapProblem)."""
-    n = len(vertices)
-    return Mesh(vertices, faces, np.arange(n, dtype=np.int64), n, MeshReport())
+def unit_area(mesh: Mesh) -> Mesh:
+    """The mesh scaled to total area 1 (the scale of every basis)."""
+    return dataclasses.replace(mesh, vertices=mesh.vertices / np.sqrt(mesh.area))
 
 
-def unit_area_vertices(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """The vertices scaled so that the surface has total area 1 (the scale of every basis)."""
-    return vertices / np.sqrt(surface(vertices, faces).area)
-
-
-def initial_maps(problem: MapProblem, search: str = "faiss") -> PointwiseMaps:
+def initial_maps(pair: ShapePair, maps: FunctionalMaps, search: str = "faiss") -> PointwiseMaps:
     """The ``nearest-neighbor`` converter's maps (both functional maps at once), where refinement starts."""
-    M, N = problem.basis_M, problem.basis_N
+    M, N = pair.basis_M, pair.basis_N
     return PointwiseMaps(
-        p2p_NM=pointwise_from_both(problem.C_MN, problem.C_NM, M, N, search),
-        p2p_MN=pointwise_from_both(problem.C_NM, problem.C_MN, N, M, search),
+        p2p_NM=pointwise_from_both(maps.C_MN, maps.C_NM, M, N, search),
+        p2p_MN=pointwise_from_both(maps.C_NM, maps.C_MN, N, M, search),
     )
 
 
-def bases_with(problem: MapProblem, k: int, progress: Progress = no_progress) -> tuple[Basis, Basis]:
-    """Bases of M and N with at least ``k`` functions: the problem's own, or, where one is too small, the
+def bases_with(pair: ShapePair, k: int, progress: Progress = no_progress) -> tuple[Basis, Basis]:
+    """Bases of M and N with at least ``k`` functions: the pair's own, or, where one is too small, the
     default ``laplace-beltrami`` basis computed here (a worker can do that; it costs seconds per shape)."""
     return (
-        _basis_with(problem.basis_M, problem.vertices_M, problem.faces_M, k, scaled(progress, 0.0, 0.5)),
-        _basis_with(problem.basis_N, problem.vertices_N, problem.faces_N, k, scaled(progress, 0.5, 1.0)),
+        _basis_with(pair.basis_M, pair.mesh_M, k, scaled(progress, 0.0, 0.5)),
+        _basis_with(pair.basis_N, pair.mesh_N, k, scaled(progress, 0.5, 1.0)),
     )
 
 
-def _basis_with(basis: Basis, vertices: np.ndarray, faces: np.ndarray, k: int, progress: Progress) -> Basis:
+def _basis_with(basis: Basis, mesh: Mesh, k: int, progress: Progress) -> Basis:
     if basis.k >= k:
         return basis
     progress(0.0, f"computing a {k}-function basis (the session's has {basis.k})")
-    plugin = registry.get("basis", "laplace-beltrami")
-    return plugin.run(surface(vertices, faces), k, plugin.parse_params({}), progress)
+    plugin, params = registry.load("basis", "laplace-beltrami")
+    return plugin.run(mesh, k, params, progress)
 
 
-def spread_samples(vertices: np.ndarray, faces: np.ndarray, count: int) -> np.ndarray:
+def spread_samples(mesh: Mesh, count: int) -> np.ndarray:
     """``count`` (at most every) vertices spread by geodesic farthest-point sampling, from vertex 0."""
-    return farthest_point_sampling(surface(vertices, faces), min(count, len(vertices)))
+    return farthest_point_sampling(mesh, min(count, mesh.n_vertices))

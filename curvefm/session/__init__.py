@@ -4,7 +4,6 @@ persisted session record, and the shape pair with its bases from which a session
 
 from curvefm.session.curves import CurvesFile, CurveSpec, read_curves, trace_curve, trace_pair
 from curvefm.session.pair import (
-    ShapePair,
     basis_available,
     build_solver,
     internal_paths,
@@ -13,6 +12,7 @@ from curvefm.session.pair import (
     missing_basis_error,
 )
 from curvefm.session.record import CurveRecord, SessionRecord
+from curvefm.spectral import ShapePair  # defined below the maps that use it; the session's pair is the same type
 
 __all__ = [
     "CurveRecord",

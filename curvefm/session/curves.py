@@ -70,8 +70,7 @@ def trace_curve(
     points = mesh.internal_ids(waypoints, "waypoint")
     if len(points) < 2:
         raise CurvefmError(f"a curve needs at least two waypoints (start and end), got {len(points)}")
-    plugin = registry.get("tracer", tracer)
-    parsed = plugin.parse_params(params)
+    plugin, parsed = registry.load("tracer", tracer, params)
     pieces = [plugin.run(mesh, int(a), int(b), parsed) for a, b in zip(points[:-1], points[1:], strict=True)]
     traced = np.concatenate([pieces[0]] + [p[1:] for p in pieces[1:]])
     if len(traced) < 2:

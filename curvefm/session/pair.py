@@ -1,30 +1,17 @@
-"""Both shapes of a session with their bases, loaded from the store, and the session's solver rebuilt from them."""
+"""Both shapes of a session with their bases (a :class:`~curvefm.spectral.ShapePair`), loaded from the store, and
+the session's solver rebuilt from them."""
 
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
 
 import numpy as np
 
 from curvefm.errors import CurvefmError
 from curvefm.fmap import CurveMapSolver
-from curvefm.geometry import Mesh
 from curvefm.session.record import CurveRecord, SessionRecord
-from curvefm.spectral import Basis
+from curvefm.spectral import Basis, ShapePair
 from curvefm.store import Store, params_key
-
-
-@dataclass(frozen=True)
-class ShapePair:
-    mesh_M: Mesh
-    mesh_N: Mesh
-    basis_M: Basis
-    basis_N: Basis
-
-    @property
-    def meshes(self) -> tuple[Mesh, Mesh]:
-        return self.mesh_M, self.mesh_N
 
 
 def basis_available(store: Store, mesh_id: str, k: int, plugin: str, params: dict) -> bool:

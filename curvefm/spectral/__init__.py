@@ -1,5 +1,6 @@
 """Spectral shape analysis: the first k Laplace-Beltrami eigenpairs (:class:`Basis`, always of the mesh
-scaled to unit area), the eigensolver that computes them, and spectral descriptors (wave kernels).
+scaled to unit area), the eigensolver that computes them, spectral descriptors (wave kernels), and the
+:class:`ShapePair` (two meshes with their bases) that maps are computed on.
 """
 
 from curvefm.spectral.basis import Basis, check_k, max_k
@@ -20,6 +21,7 @@ from curvefm.spectral.eigensolver import (
     log,
     smallest_eigenpairs,
 )
+from curvefm.spectral.pair import ShapePair
 
 __all__ = [
     "BLOCK",
@@ -27,6 +29,7 @@ __all__ = [
     "EigenError",
     "PARALLEL_MIN_VERTICES",
     "SIGMA",
+    "ShapePair",
     "block_lanczos",
     "check_k",
     "curve_function",

@@ -14,7 +14,7 @@ from curvefm import registry
 from curvefm.errors import CurvefmError
 from curvefm.evaluation.reproduce.datasets import DATASETS, Suite
 from curvefm.evaluation.reproduce.scoring import LoadedPair
-from curvefm.fmap import DEFAULT_K, MapInputs
+from curvefm.fmap import DEFAULT_K, Hints
 from curvefm.progress import Progress, no_progress
 from curvefm.store import Store
 
@@ -69,20 +69,18 @@ def run_task(loaded: LoadedPair, count: int, seed: int) -> list[dict]:
     for variant in VARIANTS:
         if variant.exact not in curves:
             continue
-        inputs = MapInputs.from_curves(
-            loaded.mesh_M, loaded.mesh_N, loaded.basis_M, loaded.basis_N, curves[variant.exact]
-        )
-        plugin = registry.get("method", variant.method)
+        hints = Hints.from_curves(curves[variant.exact])
+        plugin, params = registry.load("method", variant.method, variant.params)
         record = {"dataset": loaded.pair.dataset, "pair": loaded.pair.name, "variant": variant.key,
                   "count": count, "seed": seed}  # fmt: skip
         start = time.perf_counter()
         try:
-            maps = plugin.run(inputs, plugin.parse_params(variant.params))
+            maps = plugin.run(loaded.shapes, hints, params, no_progress)
         except CurvefmError as exc:
             out.append(record | {"failed": str(exc)})
             continue
         record["seconds"] = time.perf_counter() - start
-        errors = loaded.scorer(maps.C_NM, loaded.basis_M, loaded.basis_N)
+        errors = loaded.scorer(maps.C_NM, loaded.shapes.basis_M, loaded.shapes.basis_N)
         out.append(record | {"mean": errors.mean, "mean_area": errors.mean_area, "auc": errors.auc,
                              "curve": errors.curve})  # fmt: skip
     return out

@@ -20,7 +20,7 @@ from curvefm.evaluation.reproduce.datasets import Pair
 from curvefm.geometry import Mesh, geodesic_diameter, geodesic_distances, load_mesh
 from curvefm.pointwise import pointwise_from_fmap
 from curvefm.progress import Progress, no_progress, scaled
-from curvefm.spectral import Basis
+from curvefm.spectral import Basis, ShapePair
 from curvefm.store import Store
 
 MAX_ROWS = 1000
@@ -29,11 +29,8 @@ MAX_ROWS = 1000
 @dataclass
 class LoadedPair:
     pair: Pair
-    mesh_M: Mesh
-    mesh_N: Mesh
+    shapes: ShapePair
     truth: GroundTruth
-    basis_M: Basis
-    basis_N: Basis
     pool: CurvePool
     scorer: Scorer
 
@@ -47,7 +44,7 @@ class LoadedPair:
         scorer = Scorer.build(mesh_N, truth)
         pool = CurvePool(mesh_M, mesh_N, truth)
         progress(1.0, f"{pair.name}: ready")
-        return cls(pair, mesh_M, mesh_N, truth, basis_M, basis_N, pool, scorer)
+        return cls(pair, ShapePair(mesh_M, mesh_N, basis_M, basis_N), truth, pool, scorer)
 
 
 @dataclass

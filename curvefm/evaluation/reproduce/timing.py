@@ -37,15 +37,16 @@ def run_timing(data: Path, suite: Suite, store: Store, progress: Progress = no_p
         progress((len(suite.timing_counts) + i) / steps, f"time and accuracy at k = {k}")
         row = {"curves": 10, "k": k} | time_update(loaded, curves[:10], k, suite.repeats)
         solver = build_solver(loaded, curves[:10], k)
-        errors = loaded.scorer(solver.C_NM, loaded.basis_M, loaded.basis_N)
+        errors = loaded.scorer(solver.C_NM, loaded.shapes.basis_M, loaded.shapes.basis_N)
         by_k.append(row | {"mean": errors.mean, "mean_area": errors.mean_area})
     progress(1.0, "timing done")
-    return {"pair": loaded.pair.name, "vertices": [loaded.mesh_M.n_vertices, loaded.mesh_N.n_vertices],
+    return {"pair": loaded.pair.name, "vertices": [mesh.n_vertices for mesh in loaded.shapes.meshes],
             "by_count": by_count, "by_k": by_k}  # fmt: skip
 
 
 def build_solver(loaded: LoadedPair, curves, k: int) -> CurveMapSolver:
-    solver = CurveMapSolver(loaded.mesh_M.vertices, loaded.basis_M, loaded.mesh_N.vertices, loaded.basis_N, k=k)
+    shapes = loaded.shapes
+    solver = CurveMapSolver(shapes.mesh_M.vertices, shapes.basis_M, shapes.mesh_N.vertices, shapes.basis_N, k=k)
     if curves:
         solver.add_curves([(pm, pn, 1.0) for pm, pn in curves])
     return solver
