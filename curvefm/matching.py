@@ -1,11 +1,17 @@
-"""The whole pipeline for two meshes and a list of corresponding curves, as the CLI and scripts use it."""
+"""The whole pipeline for two meshes and a list of corresponding curves, as the CLI and scripts use it.
+
+:func:`match` is ``curvefm match``. A refinement job (``curvefm.workers.jobs.refine``) solves a session's maps
+its own way and shares the rest: :func:`pair_with_basis_size`, :func:`convert` and :func:`write_outputs`.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from pydantic import BaseModel
 
 from curvefm import registry
 from curvefm.errors import CurvefmError
@@ -13,6 +19,7 @@ from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K, DEFAULT_SAMPLES, FunctionalMa
 from curvefm.geometry import Mesh, save_mesh, texture_coordinates
 from curvefm.pointwise import PointwiseMaps
 from curvefm.progress import Progress, no_progress, scaled
+from curvefm.registry import ConverterPlugin
 from curvefm.session import CurveSpec, trace_pair
 from curvefm.spectral import ShapePair
 from curvefm.store import Store
@@ -31,6 +38,35 @@ class MatchResult:
     maps: PointwiseMaps
     method: str = "curves"
     paths: tuple[tuple[np.ndarray, np.ndarray], ...] = ()
+
+
+def pair_with_basis_size(
+    store: Store,
+    meshes: tuple[Mesh, Mesh],
+    k: int,
+    plugin: str = "laplace-beltrami",
+    params: dict | None = None,
+    progress: Progress = no_progress,
+) -> ShapePair:
+    """Both meshes with their stored bases of ``k`` functions, computed and stored where missing."""
+    mesh_M, mesh_N = meshes
+    basis_M = store.ensure_basis(mesh_M, k, plugin, params, scaled(progress, 0.0, 0.5))
+    basis_N = store.ensure_basis(mesh_N, k, plugin, params, scaled(progress, 0.5, 1.0))
+    return ShapePair(mesh_M, mesh_N, basis_M, basis_N)
+
+
+def convert(
+    pair: ShapePair,
+    fmaps: FunctionalMaps,
+    converter: ConverterPlugin,
+    params: BaseModel,
+    progress: Progress = no_progress,
+    method: str = "curves",
+    paths: Sequence[tuple[np.ndarray, np.ndarray]] = (),
+) -> MatchResult:
+    """Pointwise maps from ``fmaps`` by a converter with its parsed ``params``. Give ``pair`` bases of
+    ``converter.basis_size(params)`` functions where the store has them; else the converter computes them."""
+    return MatchResult(pair, fmaps, converter.run(pair, fmaps, params, progress), method, tuple(paths))
 
 
 def match(
@@ -61,16 +97,13 @@ def match(
     method_parsed = method_plugin.parse_params(shared | (method_params or {}))
     converter_plugin, converter_parsed = registry.load("converter", converter, converter_params)
     basis_k = max(k, converter_plugin.basis_size(converter_parsed))  # refiners such as ZoomOut use larger bases
-    basis_M = store.ensure_basis(mesh_M, basis_k, progress=scaled(progress, 0.0, 0.4))
-    basis_N = store.ensure_basis(mesh_N, basis_k, progress=scaled(progress, 0.4, 0.8))
-    pair = ShapePair(mesh_M, mesh_N, basis_M, basis_N)
+    pair = pair_with_basis_size(store, (mesh_M, mesh_N), basis_k, progress=scaled(progress, 0.0, 0.8))
     paths = [trace_pair(mesh_M, mesh_N, c, tracer) if isinstance(c, CurveSpec) else c for c in curves]
     if not paths:
         raise CurvefmError("at least one pair of curves is needed to compute a map")
     weights = [c.weight if isinstance(c, CurveSpec) else 1.0 for c in curves]
     fmaps = method_plugin.run(pair.truncated(k), Hints.from_curves(paths, weights), method_parsed, no_progress)
-    maps = converter_plugin.run(pair, fmaps, converter_parsed, scaled(progress, 0.8, 1.0))
-    return MatchResult(pair, fmaps, maps, method, tuple(paths))
+    return convert(pair, fmaps, converter_plugin, converter_parsed, scaled(progress, 0.8, 1.0), method, paths)
 
 
 def write_outputs(result: MatchResult, out_dir: str | Path) -> list[Path]:

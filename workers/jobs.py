@@ -15,9 +15,9 @@ import numpy as np
 from curvefm import registry
 from curvefm.errors import CurvefmError
 from curvefm.fmap import FunctionalMaps
-from curvefm.matching import MatchResult, write_outputs
+from curvefm.matching import MatchResult, convert, pair_with_basis_size, write_outputs
 from curvefm.progress import scaled
-from curvefm.session import SessionRecord, ShapePair, build_solver, internal_paths, load_pair
+from curvefm.session import SessionRecord, build_solver, internal_paths, load_pair
 from curvefm.store import Store, params_key
 from curvefm.workers.context import running_job
 
@@ -58,14 +58,12 @@ def refine(data_dir: str, session: dict, converter: str = "nearest-neighbor", pa
         pair = load_pair(store, record)
         size = plugin.basis_size(parsed)
         if size > record.k:  # e.g. ZoomOut's k_final: compute (or find) and keep the larger bases
-            larger = (store.ensure_basis(m, size, record.basis_plugin, record.basis_params) for m in pair.meshes)
-            pair = ShapePair(*pair.meshes, *larger)
+            pair = pair_with_basis_size(store, pair.meshes, size, record.basis_plugin, record.basis_params)
         solver, _ = build_solver(record, pair)
         paths = [internal_paths(pair, curve) for curve in record.curves]
         job.progress(0.1, f"converting with '{converter}'")
         fmaps = FunctionalMaps(solver.C_MN, solver.C_NM)
-        maps = plugin.run(pair, fmaps, parsed, scaled(job.progress, 0.1, 0.9))
-        result = MatchResult(pair, fmaps, maps, paths=tuple(paths))
+        result = convert(pair, fmaps, plugin, parsed, scaled(job.progress, 0.1, 0.9), paths=paths)
         job.progress(0.9, "writing results")
         files = _publish(Path(data_dir) / "results" / job.id, lambda out: _write_result_files(result, out))
         job.progress(1.0, "done")
