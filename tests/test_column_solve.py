@@ -1,5 +1,7 @@
 """The per-column systems of a map update (curvefm.fmap.column_solve) against a plain float64 reference."""
 
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 import pytest
 
@@ -108,11 +110,15 @@ def test_both_directions_threads_and_rectangular_maps():
     G_M, _, _, _ = curve_like(50, 2, seed=6)
     G_M, B, lam_M = G_M[:40, :40], B[:, :40], lam_M[:40]  # k_N = 50, k_M = 40
     alpha = float(rng.uniform(0.1, 10))
-    C_MN, C_NM = solve_both(G_N, G_M, B, lam_N, lam_M, alpha)
+    with ThreadPoolExecutor(1) as executor:
+        C_MN, C_NM = solve_both(G_N, G_M, B, lam_N, lam_M, alpha, executor=executor)
+        split = solve_columns(G_N, B, lam_N, lam_M, alpha, executor=executor)
     assert C_MN.shape == (50, 40) and C_NM.shape == (40, 50)
     assert np.array_equal(C_MN, solve_columns(G_N, B, lam_N, lam_M, alpha))
     assert np.array_equal(C_NM, solve_columns(G_M, B.T, lam_M, lam_N, alpha))
-    assert np.array_equal(C_MN, solve_columns(G_N, B, lam_N, lam_M, alpha, threads=2))
+    assert np.array_equal(C_MN, split)
+    one_after_the_other = solve_both(G_N, G_M, B, lam_N, lam_M, alpha)  # no executor
+    assert np.array_equal(one_after_the_other[0], C_MN) and np.array_equal(one_after_the_other[1], C_NM)
     assert relative_error(C_NM, reference(G_M, B.T, lam_M, lam_N, alpha)) < 1e-10
 
 

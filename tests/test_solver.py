@@ -1,5 +1,7 @@
 """The curve-constrained solver: exactness, incremental updates, normalisation invariances."""
 
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 import pytest
 from shapes import basis_of, ellipsoid, stretched_ellipsoid_pair
@@ -89,9 +91,10 @@ def test_incremental_edits_equal_a_fresh_solve(pair):
 def test_interactive_solver_defers_the_reverse_map_and_gives_the_same_maps(pair):
     eager, _, paths = solver_with(pair, n_curves=2)
     lazy, ids, _ = solver_with(pair, n_curves=2, interactive=True)
-    assert lazy._reverse_system is not None  # only C_MN was solved by the edit
+    assert lazy.reverse_pending and not eager.reverse_pending  # the interactive edit solved only C_MN
     np.testing.assert_allclose(lazy.C_MN, eager.C_MN, atol=1e-12)
     np.testing.assert_allclose(lazy.C_NM, eager.C_NM, atol=1e-12)
+    assert not lazy.reverse_pending
     for solver in (eager, lazy):  # an edit after a read invalidates the reverse map again
         solver.add_curve(paths[0][::-1], paths[0][::-1], weight=3.0)
     np.testing.assert_allclose(lazy.C_NM, eager.C_NM, atol=1e-12)
@@ -148,3 +151,41 @@ def test_no_curves_means_no_map_and_bad_edits_are_rejected(pair):
         solver.add_curve(path, path, weight=-1)
     with pytest.raises(CurvefmError, match="exceeds the computed bases"):
         CurveMapSolver(M.vertices, bM, N.vertices, bN, k=500)
+
+
+def test_explicit_and_automatic_ids_coexist(pair):
+    M, bM, N, bN = pair
+    paths = curves_on(M, ENDPOINTS)
+    with CurveMapSolver(M.vertices, bM, N.vertices, bN, k=K) as solver:
+        assert solver.add_curves([(p, p, 1.0) for p in paths[:2]], ids=["c1", "c3"]) == ["c1", "c3"]
+        assert solver.add_curves([(p, p, 1.0) for p in paths[2:4]]) == ["c2", "c4"]  # automatic ids skip c1, c3
+        assert solver.add_curve(paths[4], paths[4], curve_id="left arm") == "left arm"
+        with pytest.raises(CurvefmError, match="'c3' already exists") as info:
+            solver.add_curves([(paths[0], paths[0], 1.0), (paths[1], paths[1], 1.0)], ids=[None, "c3"])
+        assert info.value.kind == "conflict" and len(solver.curves) == 5  # nothing was added
+        solver.remove_curve("c3")
+        assert solver.add_curve(paths[1], paths[1], weight=2.0) == "c5"  # a removed id is not handed out again
+        assert solver.add_curve(paths[1], paths[1], curve_id="c3") == "c3"  # but may be given explicitly
+        solver.remove_curve("c1")
+        order = ["c3", "c2", "c4", "left arm", "c5"]
+        assert sorted(solver.curves) == sorted(order)
+        fresh = CurveMapSolver(M.vertices, bM, N.vertices, bN, k=K)
+        fresh.add_curves([(paths[i], paths[i], w) for i, w in ((1, 1.0), (2, 1.0), (3, 1.0), (4, 1.0), (1, 2.0))])
+        np.testing.assert_allclose(solver.C_MN, fresh.C_MN, atol=1e-10)
+        np.testing.assert_allclose(solver.C_NM, fresh.C_NM, atol=1e-10)
+
+
+def test_a_solver_owns_its_thread_or_uses_the_one_it_is_handed(pair):
+    M, bM, N, bN = pair
+    paths = curves_on(M, ENDPOINTS[:2])
+    reference = CurveMapSolver(M.vertices, bM, N.vertices, bN, k=K)
+    reference.add_curves([(p, p, 1.0) for p in paths])
+    with ThreadPoolExecutor(1) as executor:
+        handed = CurveMapSolver(M.vertices, bM, N.vertices, bN, k=K, executor=executor)
+        handed.add_curves([(p, p, 1.0) for p in paths])
+        handed.close()  # leaves the executor to its owner
+        assert executor.submit(lambda: 1).result() == 1
+    np.testing.assert_allclose(handed.C_NM, reference.C_NM, atol=1e-12)
+    reference.close()
+    reference.add_curve(paths[0], paths[0])  # a closed solver starts a thread again when it needs one
+    reference.close()

@@ -28,7 +28,7 @@ and on a busy two-core machine they made factorisations of k >= 140 run 10-60 ti
 from __future__ import annotations
 
 import ctypes
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Executor
 
 import numpy as np
 from scipy.linalg import lapack
@@ -37,8 +37,6 @@ from curvefm.errors import CurvefmError
 
 RIDGE = 1e-10  # relative to the mean diagonal of the systems, see column_ridge
 PARALLEL_MIN_SIZE = 40 * 40  # smaller maps take under a millisecond: handing half to a thread costs more
-
-_pool: ThreadPoolExecutor | None = None
 
 
 def _gil_free_dposv():
@@ -62,6 +60,12 @@ def _gil_free_dposv():
 
 
 _DPOSV = _gil_free_dposv()
+
+
+def parallel_pays_off(size: int) -> bool:
+    """Whether splitting systems with ``size`` right-hand-side entries over two threads is faster: the systems
+    are large enough and the GIL-free ``dposv`` is available (the f2py fallback holds the GIL)."""
+    return _DPOSV is not None and size >= PARALLEL_MIN_SIZE
 
 
 def column_ridge(G: np.ndarray, lam_rows: np.ndarray, lam_cols: np.ndarray, alpha: float) -> float:
@@ -92,13 +96,13 @@ def solve_columns(
     lam_cols: np.ndarray,
     alpha: float,
     *,
-    threads: int = 1,
+    executor: Executor | None = None,
 ) -> np.ndarray:
     """``C`` (k x n) whose column ``j`` solves ``(G + diag(E[:, j])) c_j = B[:, j]`` (see the module doc).
 
     ``G`` (k x k) is symmetric positive semi-definite (one triangle is read), ``B`` is k x n, ``lam_rows``
     has k entries (eigenvalues of the shape whose coefficients are the rows of ``C``) and ``lam_cols`` n.
-    ``threads=2`` (or more) splits the columns over the calling thread and one worker thread.
+    With an ``executor``, half of the columns are solved on it while the calling thread solves the other half.
     """
     G, B, lam_rows, lam_cols = _checked(G, B, lam_rows, lam_cols, alpha)
     if B.size == 0:
@@ -107,9 +111,9 @@ def solve_columns(
     BT = np.ascontiguousarray(B.T)
     CT = np.empty_like(BT)
     n = len(BT)
-    if threads > 1 and B.size >= PARALLEL_MIN_SIZE and _DPOSV is not None:
+    if executor is not None and parallel_pays_off(B.size):
         half = n // 2
-        other = _worker().submit(_solve_rows, G, ET, BT, CT, range(half, n))
+        other = executor.submit(_solve_rows, G, ET, BT, CT, range(half, n))
         _solve_rows(G, ET, BT, CT, range(half))
         other.result()
     else:
@@ -124,26 +128,22 @@ def solve_both(
     lam_N: np.ndarray,
     lam_M: np.ndarray,
     alpha: float,
+    *,
+    executor: Executor | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Both map directions, side by side on two threads: ``(C_MN, C_NM)``.
+    """Both map directions: ``(C_MN, C_NM)``. With an ``executor`` the reverse map is solved on it, side by
+    side with ``C_MN`` on the calling thread; without, one after the other.
 
     ``C_MN`` (k_N x k_M) takes coefficients on M to coefficients on N: ``G = G_N``, right-hand sides ``B``
     (k_N x k_M), rows ``lam_N``, columns ``lam_M``. ``C_NM`` (k_M x k_N) is the reverse map: ``G = G_M``,
     right-hand sides ``B.T``, rows ``lam_M``, columns ``lam_N``.
     """
     B = np.asarray(B, dtype=np.float64)
-    if _DPOSV is None or B.size < PARALLEL_MIN_SIZE:  # the f2py fallback holds the GIL
+    if executor is None or not parallel_pays_off(B.size):
         return solve_columns(G_N, B, lam_N, lam_M, alpha), solve_columns(G_M, B.T, lam_M, lam_N, alpha)
-    reverse = _worker().submit(solve_columns, G_M, B.T, lam_M, lam_N, alpha)
+    reverse = executor.submit(solve_columns, G_M, B.T, lam_M, lam_N, alpha)
     C_MN = solve_columns(G_N, B, lam_N, lam_M, alpha)
     return C_MN, reverse.result()
-
-
-def _worker() -> ThreadPoolExecutor:
-    global _pool
-    if _pool is None:
-        _pool = ThreadPoolExecutor(1, thread_name_prefix="curvefm-columns")
-    return _pool
 
 
 def _checked(G, B, lam_rows, lam_cols, alpha):

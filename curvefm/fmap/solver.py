@@ -22,13 +22,14 @@ or, for an interactive server, ``C_MN`` alone on the calling thread and ``C_NM``
 
 from __future__ import annotations
 
-import itertools
+from collections.abc import Iterable, Sequence
+from concurrent.futures import Executor, ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 
 from curvefm.errors import CurvefmError
-from curvefm.fmap.column_solve import solve_both, solve_columns
+from curvefm.fmap.column_solve import parallel_pays_off, solve_both, solve_columns
 from curvefm.fmap.restriction import DEFAULT_SAMPLES, restrict
 from curvefm.spectral import Basis
 
@@ -51,13 +52,20 @@ class CurveTerm:
 class CurveMapSolver:
     """Built once per shape pair; each curve edit returns the new ``C_MN`` and ``C_NM``.
 
-    >>> solver = CurveMapSolver(vertices_M, basis_M, vertices_N, basis_N, k=120)
-    >>> cid = solver.add_curve(path_M, path_N)          # vertex paths, internal ids
-    >>> C_MN, C_NM = solver.C_MN, solver.C_NM
+    >>> with CurveMapSolver(vertices_M, basis_M, vertices_N, basis_N, k=120) as solver:
+    ...     cid = solver.add_curve(path_M, path_N)          # vertex paths, internal ids
+    ...     C_MN, C_NM = solver.C_MN, solver.C_NM
+
+    Curve ids: give your own (``curve_id=``) or let the solver name the curve ``c1``, ``c2``, ... (an automatic
+    id skips those in use; an explicit id in use is a conflict). Removed ids are not handed out again.
 
     ``interactive=True``: an edit solves ``C_MN`` on the calling thread only and ``C_NM`` is solved when first
     read. The interactive loop shows the texture carried by ``C_MN``; a server sharing its cores between
     sessions (or with a browser) edits faster this way than with two threads per edit.
+
+    ``executor``: where the reverse map is solved while the calling thread solves ``C_MN`` (not interactive).
+    Without one, the solver starts its own single thread when first needed and stops it on :meth:`close`
+    (or at the end of a ``with`` block); an executor handed in is left to its owner.
     """
 
     def __init__(
@@ -70,42 +78,42 @@ class CurveMapSolver:
         alpha: float = DEFAULT_ALPHA,
         samples: int = DEFAULT_SAMPLES,
         interactive: bool = False,
+        executor: Executor | None = None,
     ):
         if k > min(basis_M.k, basis_N.k):
             raise CurvefmError(f"k = {k} exceeds the computed bases (M has {basis_M.k}, N has {basis_N.k})")
-        if not alpha >= 0:
-            raise CurvefmError(f"alpha must be >= 0, got {alpha}")
-        if samples < 2:
-            raise CurvefmError(f"samples per curve must be at least 2, got {samples}")
         self.k, self.alpha, self.samples, self.interactive = k, float(alpha), samples, interactive
         self.vertices_M, self.vertices_N = vertices_M, vertices_N
         self.basis_M, self.basis_N = basis_M.truncated(k), basis_N.truncated(k)
         scale = max(self.basis_M.evals[-1], self.basis_N.evals[-1], 1e-12)
         self.lam_M, self.lam_N = self.basis_M.evals / scale, self.basis_N.evals / scale
         self.curves: dict[str, CurveTerm] = {}
-        self._ids = itertools.count(1)
+        self._next_number = 1  # of the next automatic id, c<number>
         self.C_MN = np.zeros((k, k))
         self._C_NM = np.zeros((k, k))
         self._reverse_system: tuple[np.ndarray, np.ndarray] | None = None  # (G_M, B) while C_NM is stale
+        self._executor, self._owns_executor = executor, False
 
     # -- editing ----------------------------------------------------------------------------------------
     def add_curve(self, path_M, path_N, weight: float = 1.0, curve_id: str | None = None) -> str:
-        curve_id = curve_id or f"c{next(self._ids)}"
-        if curve_id in self.curves:
-            raise CurvefmError(f"curve id '{curve_id}' already exists", kind="conflict")
-        self.curves[curve_id] = self._term(path_M, path_N, weight)
-        self._solve()
-        return curve_id
+        """Add one curve pair (vertex paths, internal ids); returns its id (``curve_id``, or an automatic one)."""
+        return self.add_curves([(path_M, path_N, weight)], ids=[curve_id])[0]
 
-    def add_curves(self, curves) -> list[str]:
-        """Add several ``(path_M, path_N, weight)`` curves with a single solve."""
+    def add_curves(self, curves: Iterable[tuple], ids: Sequence[str | None] | None = None) -> list[str]:
+        """Add several ``(path_M, path_N, weight)`` curves with a single solve; returns their ids.
+
+        ``ids``: one per curve, an explicit id or ``None`` for an automatic one (all automatic when omitted).
+        Nothing is added if any curve or id is rejected.
+        """
+        curves = list(curves)
+        ids = [None] * len(curves) if ids is None else list(ids)
+        if len(ids) != len(curves):
+            raise CurvefmError(f"{len(curves)} curves but {len(ids)} ids; give one id (or None) per curve")
         terms = [self._term(path_M, path_N, weight) for path_M, path_N, weight in curves]
-        ids = []
-        for term in terms:
-            ids.append(f"c{next(self._ids)}")
-            self.curves[ids[-1]] = term
+        chosen = self._claim_ids(ids)
+        self.curves.update(zip(chosen, terms, strict=True))
         self._solve()
-        return ids
+        return chosen
 
     def replace_curve(self, curve_id: str, path_M, path_N, weight: float = 1.0) -> None:
         self._require(curve_id)
@@ -116,6 +124,27 @@ class CurveMapSolver:
         self._require(curve_id)
         del self.curves[curve_id]
         self._solve()
+
+    def _claim_ids(self, requested: list[str | None]) -> list[str]:
+        """The requested ids with automatic ones filled in; explicit ids are checked before any is claimed."""
+        taken = set(self.curves)
+        for curve_id in requested:
+            if curve_id is None:
+                continue
+            if not isinstance(curve_id, str) or not curve_id:
+                raise CurvefmError(f"a curve id must be a non-empty string, got {curve_id!r}")
+            if curve_id in taken:
+                raise CurvefmError(f"curve id '{curve_id}' already exists", kind="conflict")
+            taken.add(curve_id)
+        return [self._automatic_id(taken) if curve_id is None else curve_id for curve_id in requested]
+
+    def _automatic_id(self, taken: set[str]) -> str:
+        while f"c{self._next_number}" in taken:
+            self._next_number += 1
+        curve_id = f"c{self._next_number}"
+        self._next_number += 1
+        taken.add(curve_id)
+        return curve_id
 
     def _require(self, curve_id: str) -> None:
         if curve_id not in self.curves:
@@ -152,7 +181,20 @@ class CurveMapSolver:
             self.C_MN = solve_columns(G_N, B, self.lam_N, self.lam_M, self.alpha)
             self._reverse_system = (G_M, B)
         else:
-            self.C_MN, self._C_NM = solve_both(G_N, G_M, B, self.lam_N, self.lam_M, self.alpha)
+            executor = self._solve_executor(B.size)
+            self.C_MN, self._C_NM = solve_both(G_N, G_M, B, self.lam_N, self.lam_M, self.alpha, executor=executor)
+
+    def _solve_executor(self, size: int) -> Executor | None:
+        """The executor for the reverse map, started on first need when the solver owns it."""
+        if self._executor is None and parallel_pays_off(size):
+            self._executor = ThreadPoolExecutor(1, thread_name_prefix="curvefm-columns")
+            self._owns_executor = True
+        return self._executor
+
+    @property
+    def reverse_pending(self) -> bool:
+        """Whether ``C_NM`` is still to be solved for the last edit (interactive solvers defer it to its first read)."""
+        return self._reverse_system is not None
 
     @property
     def C_NM(self) -> np.ndarray:
@@ -168,3 +210,16 @@ class CurveMapSolver:
         _, G_N, B = self.normal_equations()
         D = (self.lam_N[:, None] - self.lam_M[None, :]) ** 2
         return float(self.alpha * np.sum(D * C_MN**2) + np.sum(C_MN * (G_N @ C_MN)) - 2 * np.sum(C_MN * B))
+
+    # -- lifetime ---------------------------------------------------------------------------------------
+    def close(self) -> None:
+        """Stop the thread the solver started for itself, if any (it starts again when needed)."""
+        if self._owns_executor:
+            self._executor.shutdown()
+            self._executor, self._owns_executor = None, False
+
+    def __enter__(self) -> CurveMapSolver:
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import statistics
 import time
+from concurrent.futures import Executor, ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -27,42 +28,51 @@ def run_timing(data: Path, suite: Suite, store: Store, progress: Progress = no_p
     k_max = max(max(suite.timing_ks), DEFAULT_K)
     loaded = LoadedPair.load(data, suite.timing_pair, k_max, store)
     curves = loaded.pool.curves(max(max(suite.timing_counts), 10), seed=0, exact=False)
-    steps = len(suite.timing_counts) + len(suite.timing_ks)
-    by_count = []
-    for i, n in enumerate(suite.timing_counts):
-        progress(i / steps, f"update time with {n} curves, k = {DEFAULT_K}")
-        by_count.append({"curves": n, "k": DEFAULT_K} | time_update(loaded, curves[:n], DEFAULT_K, suite.repeats))
-    by_k = []
-    for i, k in enumerate(suite.timing_ks):
-        progress((len(suite.timing_counts) + i) / steps, f"time and accuracy at k = {k}")
-        row = {"curves": 10, "k": k} | time_update(loaded, curves[:10], k, suite.repeats)
-        solver = build_solver(loaded, curves[:10], k)
-        errors = loaded.scorer(solver.C_NM, loaded.shapes.basis_M, loaded.shapes.basis_N)
-        by_k.append(row | {"mean": errors.mean, "mean_area": errors.mean_area})
-    progress(1.0, "timing done")
+    with ThreadPoolExecutor(1, thread_name_prefix="curvefm-columns") as executor:  # where the reverse maps run
+        by_count, by_k = _time_all(loaded, curves, suite, progress, executor)
     return {"pair": loaded.pair.name, "vertices": [mesh.n_vertices for mesh in loaded.shapes.meshes],
             "by_count": by_count, "by_k": by_k}  # fmt: skip
 
 
-def build_solver(loaded: LoadedPair, curves, k: int) -> CurveMapSolver:
+def _time_all(loaded: LoadedPair, curves, suite: Suite, progress: Progress, executor: Executor):
+    steps = len(suite.timing_counts) + len(suite.timing_ks)
+    by_count = []
+    for i, n in enumerate(suite.timing_counts):
+        progress(i / steps, f"update time with {n} curves, k = {DEFAULT_K}")
+        row = time_update(loaded, curves[:n], DEFAULT_K, suite.repeats, executor)
+        by_count.append({"curves": n, "k": DEFAULT_K} | row)
+    by_k = []
+    for i, k in enumerate(suite.timing_ks):
+        progress((len(suite.timing_counts) + i) / steps, f"time and accuracy at k = {k}")
+        row = {"curves": 10, "k": k} | time_update(loaded, curves[:10], k, suite.repeats, executor)
+        solver = build_solver(loaded, curves[:10], k, executor)
+        errors = loaded.scorer(solver.C_NM, loaded.shapes.basis_M, loaded.shapes.basis_N)
+        by_k.append(row | {"mean": errors.mean, "mean_area": errors.mean_area})
+    progress(1.0, "timing done")
+    return by_count, by_k
+
+
+def build_solver(loaded: LoadedPair, curves, k: int, executor: Executor) -> CurveMapSolver:
     shapes = loaded.shapes
-    solver = CurveMapSolver(shapes.mesh_M.vertices, shapes.basis_M, shapes.mesh_N.vertices, shapes.basis_N, k=k)
+    solver = CurveMapSolver(
+        shapes.mesh_M.vertices, shapes.basis_M, shapes.mesh_N.vertices, shapes.basis_N, k=k, executor=executor
+    )
     if curves:
         solver.add_curves([(pm, pn, 1.0) for pm, pn in curves])
     return solver
 
 
-def time_update(loaded: LoadedPair, curves, k: int, repeats: int) -> dict:
+def time_update(loaded: LoadedPair, curves, k: int, repeats: int, executor: Executor) -> dict:
     """Milliseconds (median) for our exact solve, warm-started CG and warm-started L-BFGS, both directions,
     with their iteration counts and their largest deviation from the exact maps (relative to max |C|)."""
-    previous = build_solver(loaded, curves[:-1], k)
-    solver = build_solver(loaded, curves, k)
+    previous = build_solver(loaded, curves[:-1], k, executor)
+    solver = build_solver(loaded, curves, k, executor)
     G_M, G_N, B = solver.normal_equations()
     lam_M, lam_N, alpha = solver.lam_M, solver.lam_N, solver.alpha
     exact = (solver.C_MN, solver.C_NM)
 
     def ours():
-        C_MN, C_NM = solve_both(G_N, G_M, B, lam_N, lam_M, alpha)
+        C_MN, C_NM = solve_both(G_N, G_M, B, lam_N, lam_M, alpha, executor=executor)
         return (C_MN, C_NM), 0
 
     def iterative(solve):
