@@ -13,6 +13,7 @@ from curvefm.errors import CurvefmError
 from curvefm.service import routes_jobs, routes_sessions, routes_shapes
 from curvefm.service.deps import start_services
 from curvefm.service.errors import error_response, install_error_handlers
+from curvefm.service.hints import install_hints
 from curvefm.service.settings import Settings
 from curvefm.service.ui import mount_ui
 
@@ -61,6 +62,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     app = FastAPI(title="curvefm", version="0.1.0", description=DESCRIPTION, lifespan=lifespan)
     install_error_handlers(app)
+    install_hints(app)
     app.add_middleware(BodySizeLimit, limit=settings.max_upload_bytes)
     for module in (routes_shapes, routes_sessions, routes_jobs):
         app.include_router(module.router)

@@ -17,8 +17,7 @@ from curvefm.errors import CurvefmError
 from curvefm.fmap import DEFAULT_K
 from curvefm.geometry import Mesh, build_mesh
 from curvefm.service.deps import Services, submit_basis
-from curvefm.service.models import SessionCreate
-from curvefm.session import CurveSpec
+from curvefm.session import CurveSpec, SessionCreate
 
 log = logging.getLogger("curvefm.demo")
 
@@ -95,7 +94,7 @@ def _run_logged(services: Services, stop: threading.Event) -> None:
 
 
 def prepare_demo(services: Services, stop: threading.Event, k: int = DEFAULT_K) -> None:
-    if services.sessions.exists(DEMO_SESSION):
+    if services.records.exists(DEMO_SESSION):
         log.info("demo session '%s' is ready", DEMO_SESSION)
         return
     meshes = demo_shapes()

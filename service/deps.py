@@ -9,9 +9,10 @@ from typing import Annotated
 from fastapi import Depends, Request
 
 from curvefm.errors import CurvefmError
+from curvefm.service.errors import require_plugin
 from curvefm.service.models import JobInfoModel
-from curvefm.service.sessions import SessionManager
 from curvefm.service.settings import Settings
+from curvefm.session import LiveSessions, SessionEditor, SessionStore
 from curvefm.store import Store, params_key
 from curvefm.workers.queue import JobInfo, JobQueue, make_queue
 
@@ -23,19 +24,25 @@ class Services:
     settings: Settings
     store: Store
     queue: JobQueue
-    sessions: SessionManager
+    records: SessionStore
+    live: LiveSessions
+    sessions: SessionEditor
     stop_events: list[threading.Event] = field(default_factory=list)
 
     def close(self) -> None:
         for event in self.stop_events:
             event.set()
         self.queue.close()
+        self.live.close()
 
 
 def start_services(settings: Settings) -> Services:
     store = Store(settings.data_dir)
     queue = make_queue(settings.redis_url, settings.queue_prefix, settings.job_retries, settings.embedded_workers)
-    services = Services(settings, store, queue, SessionManager(store))
+    records = SessionStore(store.root)
+    live = LiveSessions(store, records)
+    sessions = SessionEditor(records, live, find_plugin=require_plugin)  # its errors list the installed plugins
+    services = Services(settings, store, queue, records, live, sessions)
     if settings.redis_url:
         from curvefm.workers.rq_queue import start_reaper
 

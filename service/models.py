@@ -2,7 +2,8 @@
 
 Vertex ids in requests and responses are **file** ids (0-based, as in the uploaded file), except in the
 binary mesh and transfer payloads, whose rows follow the mesh's internal vertex order (``file_ids`` in the
-mesh payload translates).
+mesh payload translates). The session models the API shares with the core (``SessionCreate``, ``SessionRecord``,
+``CurveSpec``, ``CurveRecord``, ``MapSummary``) are defined in :mod:`curvefm.session`.
 """
 
 from __future__ import annotations
@@ -11,8 +12,8 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K, DEFAULT_SAMPLES
-from curvefm.session import CurveRecord
+from curvefm.fmap import DEFAULT_K
+from curvefm.session import CurveRecord, MapSummary
 
 JobStateName = Literal["queued", "started", "finished", "failed", "canceled"]
 
@@ -63,19 +64,6 @@ class JobInfoModel(BaseModel):
     ended_at: float | None = None
 
 
-class SessionCreate(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    source: str = Field(description="shape id of M")
-    target: str = Field(description="shape id of N")
-    k: int = Field(DEFAULT_K, ge=1)
-    alpha: float = Field(DEFAULT_ALPHA, ge=0)
-    tracer: str = Field("geodesic", description="default tracer for curves that name none")
-    samples: int = Field(DEFAULT_SAMPLES, ge=2, le=10_000, description="samples per curve")
-    basis_plugin: str = "laplace-beltrami"
-    basis_params: dict = Field(default_factory=dict)
-    name: str = Field("", max_length=200)
-
-
 class SessionSummary(BaseModel):
     id: str
     name: str
@@ -85,13 +73,6 @@ class SessionSummary(BaseModel):
     n_curves: int
     revision: int
     updated_at: float
-
-
-class MapSummary(BaseModel):
-    revision: int = Field(description="increases with every change of the session")
-    n_curves: int
-    k: int
-    solve_ms: float = Field(description="time to update both maps for this edit")
 
 
 class CurveEdit(BaseModel):

@@ -9,17 +9,8 @@ from fastapi import APIRouter, Query, Response
 from curvefm.errors import CurvefmError
 from curvefm.service.deps import ServicesDep, job_model
 from curvefm.service.errors import require_plugin
-from curvefm.service.models import (
-    CurveEdit,
-    ErrorBody,
-    JobInfoModel,
-    MapResponse,
-    RefineRequest,
-    SessionCreate,
-    SessionSummary,
-)
-from curvefm.service.sessions import TransferFunction
-from curvefm.session import CurveSpec, SessionRecord
+from curvefm.service.models import CurveEdit, ErrorBody, JobInfoModel, MapResponse, RefineRequest, SessionSummary
+from curvefm.session import CurveSpec, SessionCreate, SessionRecord, TransferFunction
 from curvefm.spectral import check_k
 
 router = APIRouter(tags=["sessions"])
@@ -37,7 +28,7 @@ def create_session(body: SessionCreate, services: ServicesDep) -> SessionRecord:
 def list_sessions(services: ServicesDep) -> list[SessionSummary]:
     return [
         SessionSummary(n_curves=len(r.curves), **r.model_dump(include=set(SessionSummary.model_fields) - {"n_curves"}))
-        for r in services.sessions.list()
+        for r in services.records.list()
     ]
 
 
@@ -108,7 +99,7 @@ def refine(session_id: str, body: RefineRequest, services: ServicesDep) -> JobIn
     parsed = plugin.parse_params(body.params)
     size = plugin.basis_size(parsed)
     if size:  # a basis the shapes cannot have is a bad request now, not a failed job later
-        smallest = min(services.sessions.mesh(s).n_vertices for s in (record.source, record.target))
+        smallest = min(services.live.mesh(s).n_vertices for s in (record.source, record.target))
         check_k(size, smallest, f"the smaller shape of session {session_id}")
     params = parsed.model_dump()
     if not record.curves:

@@ -75,7 +75,7 @@ def get_shape_mesh(shape_id: str, services: ServicesDep, format: Literal["binary
     texture coordinates the ``uv`` transfer carries, the file's own or generated cylindrical ones) and, if the
     file had them, ``uv`` (n x 2). ``json``: the same arrays as nested lists.
     """
-    mesh = services.sessions.mesh(shape_id)
+    mesh = services.live.mesh(shape_id)
     if format == "json":
         arrays = {name: array.tolist() for name, array in _mesh_arrays(mesh).items()}
         return Response(json.dumps({"format": MESH_FORMAT, "name": mesh.name, **arrays}), media_type="application/json")
@@ -86,14 +86,14 @@ def get_shape_mesh(shape_id: str, services: ServicesDep, format: Literal["binary
 def request_basis(shape_id: str, body: BasisRequest, services: ServicesDep) -> JobInfoModel:
     """Queue the basis computation. While the same request (shape, plugin, k, parameters) is queued or
     running, the same job is returned; if the basis already exists, the job finishes at once."""
-    mesh = services.sessions.mesh(shape_id)
+    mesh = services.live.mesh(shape_id)
     canonical = require_plugin("basis", body.plugin).parse_params(body.params).model_dump()
     check_k(body.k, mesh.n_vertices, mesh.name or shape_id)
     return job_model(submit_basis(services, shape_id, body.k, body.plugin, canonical))
 
 
 def shape_info(services: Services, shape_id: str) -> ShapeInfo:
-    mesh = services.sessions.mesh(shape_id)
+    mesh = services.live.mesh(shape_id)
     return ShapeInfo(
         id=shape_id,
         name=mesh.name,

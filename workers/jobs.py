@@ -59,10 +59,10 @@ def refine(data_dir: str, session: dict, converter: str = "nearest-neighbor", pa
         size = plugin.basis_size(parsed)
         if size > record.k:  # e.g. ZoomOut's k_final: compute (or find) and keep the larger bases
             pair = pair_with_basis_size(store, pair.meshes, size, record.basis_plugin, record.basis_params)
-        solver, _ = build_solver(record, pair)
+        with build_solver(record, pair) as solver:  # its thread stops once both maps are read
+            fmaps = FunctionalMaps(solver.C_MN, solver.C_NM)
         paths = [internal_paths(pair, curve) for curve in record.curves]
         job.progress(0.1, f"converting with '{converter}'")
-        fmaps = FunctionalMaps(solver.C_MN, solver.C_NM)
         result = convert(pair, fmaps, plugin, parsed, scaled(job.progress, 0.1, 0.9), paths=paths)
         job.progress(0.9, "writing results")
         files = _publish(Path(data_dir) / "results" / job.id, lambda out: _write_result_files(result, out))

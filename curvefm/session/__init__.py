@@ -1,32 +1,67 @@
-"""The session domain shared by the service and the workers: curve specs in file ids and their tracing, the
-persisted session record, and the shape pair with its bases from which a session's solver is rebuilt.
+"""The session domain, shared by the service and the workers: a shape pair, the solver's parameters and the
+curves a user draws, kept as a record on disk and, in a long-running process, live in memory.
+
+* ``curves``: curve specs in file vertex ids and tracing them into vertex paths;
+* ``record``: the persisted :class:`SessionRecord` (and :class:`SessionCreate`, what a new one is made of;
+  both validate ``k``, ``alpha`` and ``samples`` with the same types);
+* ``record_store``: :class:`SessionStore`, records read and written atomically under ``<data>/sessions/``,
+  with a revision number per write;
+* ``pair``: the :class:`ShapePair` (:mod:`curvefm.spectral`'s) loaded from the store, and the session's solver
+  rebuilt from a record (:func:`build_solver`; its curve ids are the record's);
+* ``live``: :class:`LiveSessions`, the bounded in-memory cache of solvers, shapes, bases and transfers, with a
+  fixed set of locks;
+* ``editing``: :class:`SessionEditor`, the operations (create, add / replace / remove a curve, maps,
+  transfer), each written to disk before it returns;
+* ``cache``: the thread-safe :class:`LRU` the cache is made of.
 """
 
+from curvefm.session.cache import LRU
 from curvefm.session.curves import CurvesFile, CurveSpec, read_curves, trace_curve, trace_pair
+from curvefm.session.editing import MapSummary, SessionEditor, TransferFunction, source_function
+from curvefm.session.live import LiveSession, LiveSessions, UnknownShape
 from curvefm.session.pair import (
+    BasisNeed,
+    MissingBasis,
     basis_available,
+    basis_needs,
     build_solver,
     internal_paths,
     load_basis,
     load_pair,
-    missing_basis_error,
 )
-from curvefm.session.record import CurveRecord, SessionRecord
+from curvefm.session.record import Alpha, CurveRecord, MapSize, Samples, SessionCreate, SessionRecord
+from curvefm.session.record_store import SessionStore, UnknownSession
 from curvefm.spectral import ShapePair  # defined below the maps that use it; the session's pair is the same type
 
 __all__ = [
+    "LRU",
+    "Alpha",
+    "BasisNeed",
     "CurveRecord",
     "CurveSpec",
     "CurvesFile",
+    "LiveSession",
+    "LiveSessions",
+    "MapSize",
+    "MapSummary",
+    "MissingBasis",
+    "Samples",
+    "SessionCreate",
+    "SessionEditor",
     "SessionRecord",
+    "SessionStore",
     "ShapePair",
+    "TransferFunction",
+    "UnknownSession",
+    "UnknownShape",
     "basis_available",
+    "basis_needs",
     "build_solver",
     "internal_paths",
     "load_basis",
     "load_pair",
-    "missing_basis_error",
     "read_curves",
+    "source_function",
     "trace_curve",
     "trace_pair",
 ]

@@ -3,7 +3,8 @@ the session's solver rebuilt from them."""
 
 from __future__ import annotations
 
-import json
+from concurrent.futures import Executor
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -14,35 +15,54 @@ from curvefm.spectral import Basis, ShapePair
 from curvefm.store import Store, params_key
 
 
-def basis_available(store: Store, mesh_id: str, k: int, plugin: str, params: dict) -> bool:
-    """Whether a basis with at least k functions exists, without loading it."""
-    key = params_key(params)
-    return any(b["plugin"] == plugin and b["params_key"] == key and b["k"] >= k for b in store.stored_bases(mesh_id))
+@dataclass(frozen=True)
+class BasisNeed:
+    """A basis a session needs: on shape ``mesh_id`` (its ``role``, source or target), at least ``k`` functions
+    from ``plugin`` with ``params``."""
+
+    mesh_id: str
+    role: str
+    k: int
+    plugin: str
+    params: dict
+
+    def describe(self) -> str:
+        return f"the {self.role} shape {self.mesh_id} has no '{self.plugin}' basis with k >= {self.k} yet"
 
 
-def missing_basis_error(mesh_id: str, role: str, k: int, plugin: str, params: dict) -> CurvefmError:
-    body = json.dumps({"k": k, "plugin": plugin, "params": params})
-    return CurvefmError(
-        f"the {role} shape {mesh_id} has no '{plugin}' basis with k >= {k} yet; request it with "
-        f"POST /shapes/{mesh_id}/bases {body} and wait for the job to finish",
-        kind="conflict",
+class MissingBasis(CurvefmError):
+    """Bases a session needs are not computed yet (``needs`` says which); compute them, then try again."""
+
+    def __init__(self, needs: list[BasisNeed]):
+        self.needs = needs
+        super().__init__("; ".join(need.describe() for need in needs), kind="conflict")
+
+
+def basis_needs(record: SessionRecord) -> tuple[BasisNeed, BasisNeed]:
+    """The bases of the source and the target that the session's solver is built from."""
+    k, plugin, params = record.k, record.basis_plugin, record.basis_params
+    return BasisNeed(record.source, "source", k, plugin, params), BasisNeed(record.target, "target", k, plugin, params)
+
+
+def basis_available(store: Store, need: BasisNeed) -> bool:
+    """Whether the basis exists (at least ``need.k`` functions), without loading it."""
+    key = params_key(need.params)
+    return any(
+        b["plugin"] == need.plugin and b["params_key"] == key and b["k"] >= need.k
+        for b in store.stored_bases(need.mesh_id)
     )
 
 
-def load_basis(store: Store, mesh_id: str, role: str, record: SessionRecord) -> Basis:
-    basis = store.find_basis(mesh_id, record.k, record.basis_plugin, record.basis_params)
+def load_basis(store: Store, need: BasisNeed) -> Basis:
+    basis = store.find_basis(need.mesh_id, need.k, need.plugin, need.params)
     if basis is None:
-        raise missing_basis_error(mesh_id, role, record.k, record.basis_plugin, record.basis_params)
+        raise MissingBasis([need])
     return basis
 
 
 def load_pair(store: Store, record: SessionRecord) -> ShapePair:
-    return ShapePair(
-        store.get_mesh(record.source),
-        store.get_mesh(record.target),
-        load_basis(store, record.source, "source", record),
-        load_basis(store, record.target, "target", record),
-    )
+    meshes = store.get_mesh(record.source), store.get_mesh(record.target)
+    return ShapePair(*meshes, *(load_basis(store, need) for need in basis_needs(record)))
 
 
 def internal_paths(pair: ShapePair, curve: CurveRecord) -> tuple[np.ndarray, np.ndarray]:
@@ -53,9 +73,9 @@ def internal_paths(pair: ShapePair, curve: CurveRecord) -> tuple[np.ndarray, np.
 
 
 def build_solver(
-    record: SessionRecord, pair: ShapePair, interactive: bool = False
-) -> tuple[CurveMapSolver, dict[str, str]]:
-    """The session's solver with all its curves, and the map from session curve ids to solver curve ids."""
+    record: SessionRecord, pair: ShapePair, interactive: bool = False, executor: Executor | None = None
+) -> CurveMapSolver:
+    """The session's solver with all its curves, under the same curve ids as in the record."""
     solver = CurveMapSolver(
         pair.mesh_M.vertices,
         pair.basis_M,
@@ -65,8 +85,9 @@ def build_solver(
         alpha=record.alpha,
         samples=record.samples,
         interactive=interactive,
+        executor=executor,
     )
-    if not record.curves:
-        return solver, {}
-    solver_ids = solver.add_curves([(*internal_paths(pair, curve), curve.spec.weight) for curve in record.curves])
-    return solver, dict(zip((curve.id for curve in record.curves), solver_ids, strict=True))
+    if record.curves:
+        curves = [(*internal_paths(pair, curve), curve.spec.weight) for curve in record.curves]
+        solver.add_curves(curves, ids=[curve.id for curve in record.curves])
+    return solver

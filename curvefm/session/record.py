@@ -1,15 +1,41 @@
 """Session records: what a session stores on disk (:func:`curvefm.session.pair.build_solver` rebuilds its solver).
 
 A record holds the shape pair, the parameters and every curve with its traced paths in **file** vertex ids
-(the ids a user reads off the mesh files). The API writes it atomically on every change; the refinement job
-receives a copy of it, so both rebuild exactly the same ``CurveMapSolver``.
+(the ids a user reads off the mesh files). It is written atomically on every change
+(:class:`curvefm.session.record_store.SessionStore`); the refinement job receives a copy of it, so both rebuild
+exactly the same ``CurveMapSolver``.
+
+The solver's parameters ``k``, ``alpha`` and ``samples`` are validated here, once, by the types below, which the
+request for a new session (:class:`SessionCreate`) and the record share.
 """
 
 from __future__ import annotations
 
+from typing import Annotated
+
 from pydantic import BaseModel, ConfigDict, Field
 
+from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K, DEFAULT_SAMPLES
 from curvefm.session.curves import CurveSpec
+
+MapSize = Annotated[int, Field(ge=1, description="basis functions per shape: the maps are k x k")]
+Alpha = Annotated[float, Field(ge=0, allow_inf_nan=False, description="weight of Laplacian commutativity")]
+Samples = Annotated[int, Field(ge=2, le=10_000, description="samples per curve")]
+
+
+class SessionCreate(BaseModel):
+    """A new session on two stored shapes (ids), with the parameters of its solver."""
+
+    model_config = ConfigDict(extra="forbid")
+    source: str = Field(description="shape id of M")
+    target: str = Field(description="shape id of N")
+    k: MapSize = DEFAULT_K
+    alpha: Alpha = DEFAULT_ALPHA
+    tracer: str = Field("geodesic", description="default tracer for curves that name none")
+    samples: Samples = DEFAULT_SAMPLES
+    basis_plugin: str = "laplace-beltrami"
+    basis_params: dict = Field(default_factory=dict)
+    name: str = Field("", max_length=200)
 
 
 class CurveRecord(BaseModel):
@@ -29,14 +55,14 @@ class SessionRecord(BaseModel):
     name: str = ""
     source: str = Field(description="shape id of M, the source")
     target: str = Field(description="shape id of N, the target")
-    k: int
-    alpha: float
-    samples: int
+    k: MapSize
+    alpha: Alpha
+    samples: Samples
     tracer: str
     basis_plugin: str
     basis_params: dict
     curves: list[CurveRecord] = Field(default_factory=list)
     next_curve: int = 1
-    revision: int = 0
+    revision: int = Field(0, description="increases with every write of the record")
     created_at: float
     updated_at: float

@@ -1,4 +1,5 @@
-"""A small thread-safe LRU cache for things rebuilt from the store (meshes, bases, live sessions)."""
+"""A small thread-safe least-recently-used cache, for what is rebuilt from the store on demand (meshes, bases,
+live sessions, projected transfer functions): bounded, so memory stays flat however many are asked for."""
 
 from __future__ import annotations
 
@@ -42,3 +43,7 @@ class LRU(Generic[V]):
     def pop(self, key: Hashable) -> None:
         with self._lock:
             self._items.pop(key, None)
+
+    def clear(self) -> None:
+        with self._lock:
+            self._items.clear()

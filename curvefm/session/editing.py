@@ -1,0 +1,200 @@
+"""The operations on sessions: create one, add / replace / remove curves, read the maps, transfer a function.
+
+An edit changes the live solver and writes the record (atomically, with the next revision) before it returns,
+so an acknowledged edit survives a restart. Edits of one session are serialised by its lock; tracing, the slow
+part, runs before the lock is taken, so edits of different sessions, and the tracing of one, run in parallel.
+Curve ids are ``c<n>`` with ``n`` the record's ``next_curve`` (never reused); the solver holds the curves under
+the same ids.
+"""
+
+from __future__ import annotations
+
+import secrets
+import time
+from collections.abc import Callable
+from typing import Literal
+
+import numpy as np
+from pydantic import BaseModel, Field
+
+from curvefm import registry
+from curvefm.errors import CurvefmError
+from curvefm.fmap import FunctionTransfer
+from curvefm.geometry import Mesh, texture_coordinates
+from curvefm.session.curves import CurveSpec, trace_pair
+from curvefm.session.live import LiveSession, LiveSessions
+from curvefm.session.pair import MissingBasis, basis_available, basis_needs, internal_paths
+from curvefm.session.record import CurveRecord, SessionCreate, SessionRecord
+from curvefm.session.record_store import SessionStore
+from curvefm.spectral import check_k
+
+TransferFunction = Literal["uv", "xyz", "indicator"]
+
+
+class MapSummary(BaseModel):
+    """What an edit reports about the session's maps."""
+
+    revision: int = Field(description="increases with every change of the session")
+    n_curves: int
+    k: int
+    solve_ms: float = Field(description="time to update both maps for this edit")
+
+
+class SessionEditor:
+    """Sessions stored in ``records`` and kept live in ``live``.
+
+    ``find_plugin(kind, name)`` looks plugins up (default :func:`curvefm.registry.get`); the API passes one
+    whose error lists the installed plugins.
+    """
+
+    def __init__(self, records: SessionStore, live: LiveSessions, find_plugin: Callable = registry.get):
+        self.records, self.live, self.find_plugin = records, live, find_plugin
+
+    def create(self, request: SessionCreate, session_id: str | None = None) -> SessionRecord:
+        """A new session; both shapes must already have bases with at least ``k`` functions."""
+        self.find_plugin("tracer", request.tracer)
+        basis_params = self.find_plugin("basis", request.basis_plugin).parse_params(request.basis_params)
+        now = time.time()
+        record = SessionRecord(
+            id=session_id or secrets.token_hex(8),
+            basis_params=basis_params.model_dump(),
+            created_at=now,
+            updated_at=now,
+            **request.model_dump(exclude={"basis_params"}),
+        )
+        self._check_shapes(record)
+        with self.live.lock(record.id):
+            self.records.create(record)
+            self.live.get(record.id)  # bases loaded and solver built now, not on the first curve
+        return record
+
+    def record(self, session_id: str) -> SessionRecord:
+        with self.live.lock(session_id):
+            live = self.live.peek(session_id)
+            return live.record if live is not None else self.records.read(session_id)
+
+    # -- edits --------------------------------------------------------------------------------------------
+    def add_curve(self, session_id: str, spec: CurveSpec) -> tuple[CurveRecord, MapSummary]:
+        traced = self._trace(self.record(session_id), spec)
+        with self.live.lock(session_id):
+            live = self.live.get(session_id)
+            curve = traced.model_copy(update={"id": f"c{live.record.next_curve}"})
+            started = time.perf_counter()
+            live.solver.add_curve(*internal_paths(live.pair, curve), weight=spec.weight, curve_id=curve.id)
+            solve_ms = _ms_since(started)
+            self._commit(live, curves=[*live.record.curves, curve], next_curve=live.record.next_curve + 1)
+            return curve, _summary(live, solve_ms)
+
+    def replace_curve(self, session_id: str, curve_id: str, spec: CurveSpec) -> tuple[CurveRecord, MapSummary]:
+        record = self.record(session_id)
+        _require_curve(record, curve_id)
+        traced = self._trace(record, spec)
+        with self.live.lock(session_id):
+            live = self.live.get(session_id)
+            _require_curve(live.record, curve_id)
+            curve = traced.model_copy(update={"id": curve_id})
+            started = time.perf_counter()
+            live.solver.replace_curve(curve_id, *internal_paths(live.pair, curve), weight=spec.weight)
+            solve_ms = _ms_since(started)
+            self._commit(live, curves=[curve if c.id == curve_id else c for c in live.record.curves])
+            return curve, _summary(live, solve_ms)
+
+    def remove_curve(self, session_id: str, curve_id: str) -> MapSummary:
+        with self.live.lock(session_id):
+            live = self.live.get(session_id)
+            _require_curve(live.record, curve_id)
+            started = time.perf_counter()
+            live.solver.remove_curve(curve_id)
+            solve_ms = _ms_since(started)
+            self._commit(live, curves=[c for c in live.record.curves if c.id != curve_id])
+            return _summary(live, solve_ms)
+
+    # -- maps and transfer --------------------------------------------------------------------------------
+    def maps(self, session_id: str) -> tuple[np.ndarray, np.ndarray, SessionRecord]:
+        """``(C_MN, C_NM, record)``: both maps and the record they reflect."""
+        with self.live.lock(session_id):
+            live = self.live.get(session_id)
+            return live.solver.C_MN, live.solver.C_NM, live.record
+
+    def transfer(
+        self, session_id: str, function: TransferFunction, vertices: list[int] | None = None
+    ) -> tuple[np.ndarray, int]:
+        """``function`` on the source carried to the target: float32 rows per target vertex (internal
+        order), and the session revision it reflects."""
+        with self.live.lock(session_id):
+            live = self.live.get(session_id)
+            C_MN, revision = live.solver.C_MN, live.record.revision
+        key = (function, tuple(vertices or ()))
+        carried = live.transfers.get(key, lambda: _projected(live, function, vertices))
+        values = carried.apply(C_MN)
+        return np.ascontiguousarray(values.reshape(len(values), -1), dtype=np.float32), revision
+
+    # -- internals ----------------------------------------------------------------------------------------
+    def _check_shapes(self, record: SessionRecord) -> None:
+        """Both shapes exist, can have ``k`` basis functions, and have them already."""
+        needs = basis_needs(record)
+        for need in needs:
+            mesh = self.live.mesh(need.mesh_id, need.role)
+            check_k(record.k, mesh.n_vertices, mesh.name or need.mesh_id)
+        missing = [need for need in needs if not basis_available(self.live.store, need)]
+        if missing:
+            raise MissingBasis(missing)
+
+    def _trace(self, record: SessionRecord, spec: CurveSpec) -> CurveRecord:
+        """Trace a curve pair (no lock held). The returned record's id is a placeholder."""
+        tracer = spec.tracer or record.tracer
+        if not spec.explicit:
+            self.find_plugin("tracer", tracer)
+        mesh_M, mesh_N = self.live.mesh(record.source, "source"), self.live.mesh(record.target, "target")
+        path_M, path_N = trace_pair(mesh_M, mesh_N, spec, record.tracer)
+        return CurveRecord(
+            id="new",
+            spec=spec,
+            tracer="explicit" if spec.explicit else tracer,
+            path_source=mesh_M.file_ids[path_M].tolist(),
+            path_target=mesh_N.file_ids[path_N].tolist(),
+        )
+
+    def _commit(self, live: LiveSession, **changes) -> None:
+        """Write the edited record, then make it the live one. If writing fails the solver already holds the
+        edit, so the live session is dropped and rebuilt from disk on next use."""
+        try:
+            live.record = self.records.write(live.record.model_copy(update=changes))
+        except BaseException:
+            self.live.drop(live.record.id)
+            raise
+
+
+def source_function(mesh: Mesh, function: TransferFunction, vertices: list[int] | None = None) -> np.ndarray:
+    """Per-vertex values on the source: its uv (or generated cylindrical uv), its coordinates scaled to [0, 1]
+    per axis, or the indicator of some vertices (file ids)."""
+    if function == "uv":
+        return texture_coordinates(mesh)
+    if function == "xyz":
+        low = mesh.vertices.min(axis=0)
+        return (mesh.vertices - low) / np.maximum(np.ptp(mesh.vertices, axis=0), 1e-300)
+    if not vertices:
+        raise CurvefmError("function 'indicator' needs vertices: file ids on the source, e.g. 12,345")
+    values = np.zeros(mesh.n_vertices)
+    values[mesh.internal_ids(vertices, "indicator vertex")] = 1.0
+    return values
+
+
+def _projected(live: LiveSession, function: TransferFunction, vertices: list[int] | None) -> FunctionTransfer:
+    values = source_function(live.pair.mesh_M, function, vertices)
+    return FunctionTransfer(live.solver.basis_M, live.solver.basis_N, values)
+
+
+def _require_curve(record: SessionRecord, curve_id: str) -> None:
+    if all(c.id != curve_id for c in record.curves):
+        ids = ", ".join(c.id for c in record.curves) or "none yet"
+        raise CurvefmError(f"no curve '{curve_id}' in session {record.id}; its curves: {ids}", kind="not_found")
+
+
+def _summary(live: LiveSession, solve_ms: float) -> MapSummary:
+    record = live.record
+    return MapSummary(revision=record.revision, n_curves=len(record.curves), k=record.k, solve_ms=solve_ms)
+
+
+def _ms_since(started: float) -> float:
+    return round((time.perf_counter() - started) * 1000, 3)

@@ -1,0 +1,98 @@
+"""Live sessions: what a long-running process (the API) keeps in memory for the sessions in use.
+
+A live session is its record, its shapes with their bases and its solver with every curve, plus the functions
+projected for transfer. All of it is a cache, rebuilt from the store on demand: the record on disk is the
+truth. :class:`LiveSessions` bounds everything it holds (least recently used go first), hands its solvers one
+executor it owns, and serialises the use of each session through a fixed set of locks: session ``s`` uses lock
+``crc32(s) % 64``, so the lock table does not grow with the ids asked for. Two sessions rarely contend: at the
+load budget (50 sessions editing twice a second, about 10 ms an edit) an edit finds its lock held by another
+session's edit about 1 time in 65.
+"""
+
+from __future__ import annotations
+
+import threading
+import zlib
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+from curvefm.errors import CurvefmError
+from curvefm.fmap import CurveMapSolver, FunctionTransfer
+from curvefm.geometry import Mesh
+from curvefm.session.cache import LRU
+from curvefm.session.pair import BasisNeed, ShapePair, basis_needs, build_solver, load_basis
+from curvefm.session.record import SessionRecord
+from curvefm.session.record_store import SessionStore
+from curvefm.spectral import Basis
+from curvefm.store import Store, params_key
+
+LOCK_STRIPES = 64
+
+
+class UnknownShape(CurvefmError):
+    """No stored shape has this id."""
+
+    def __init__(self, mesh_id: str, role: str = ""):
+        self.mesh_id, self.role = mesh_id, role
+        super().__init__(f"no {role + ' ' if role else ''}shape with id '{mesh_id}'", kind="not_found")
+
+
+@dataclass
+class LiveSession:
+    record: SessionRecord
+    pair: ShapePair
+    solver: CurveMapSolver
+    transfers: LRU[FunctionTransfer]  # by (function, vertices): the function on M projected on M's basis
+
+
+class LiveSessions:
+    """Live sessions (at most ``size``), the meshes and bases they use, and the locks that serialise them."""
+
+    def __init__(self, store: Store, records: SessionStore, size: int = 32):
+        self.store, self.records = store, records
+        self._meshes: LRU[Mesh] = LRU(16)
+        self._bases: LRU[Basis] = LRU(8)
+        self._sessions: LRU[LiveSession] = LRU(size)
+        self._locks = tuple(threading.Lock() for _ in range(LOCK_STRIPES))
+        self._executor = ThreadPoolExecutor(2, thread_name_prefix="curvefm-columns")
+
+    def lock(self, session_id: str) -> threading.Lock:
+        """The lock to hold while using or changing session ``session_id``."""
+        return self._locks[zlib.crc32(session_id.encode()) % len(self._locks)]
+
+    def get(self, session_id: str) -> LiveSession:
+        """The live session, rebuilt from its record when not cached. The caller holds its lock."""
+        return self._sessions.get(session_id, lambda: self._build(self.records.read(session_id)))
+
+    def peek(self, session_id: str) -> LiveSession | None:
+        return self._sessions.peek(session_id)
+
+    def drop(self, session_id: str) -> None:
+        """Forget the live session: it is rebuilt from disk on next use."""
+        self._sessions.pop(session_id)
+
+    def mesh(self, mesh_id: str, role: str = "") -> Mesh:
+        """A stored mesh; ``role`` (source or target) names it in the error when there is none."""
+        if not self.store.has_mesh(mesh_id):
+            raise UnknownShape(mesh_id, role)
+        return self._meshes.get(mesh_id, lambda: self.store.get_mesh(mesh_id))
+
+    def basis(self, need: BasisNeed) -> Basis:
+        key = (need.mesh_id, need.plugin, params_key(need.params), need.k)
+        return self._bases.get(key, lambda: load_basis(self.store, need))
+
+    def close(self) -> None:
+        """Forget every live session and stop the solvers' executor."""
+        self._sessions.clear()
+        self._executor.shutdown()
+
+    def _build(self, record: SessionRecord) -> LiveSession:
+        need_M, need_N = basis_needs(record)
+        meshes = self.mesh(record.source, "source"), self.mesh(record.target, "target")
+        pair = ShapePair(*meshes, self.basis(need_M), self.basis(need_N))
+        # an edit solves only the map the texture needs, on one thread: with the cores shared (other sessions,
+        # or the browser in bench_ui_latency) that took the solve from 11-13 to 8 ms
+        solver = build_solver(record, pair, interactive=True, executor=self._executor)
+        for mesh in pair.meshes:
+            mesh.edge_graph  # noqa: B018  (cached property: built here so the first trace answers at once)
+        return LiveSession(record, pair, solver, LRU(8))

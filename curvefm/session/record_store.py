@@ -1,0 +1,71 @@
+"""The session records on disk: ``<data>/sessions/<id>.json``, one JSON file per session.
+
+Every write replaces the whole file atomically (:func:`curvefm.store.atomic_write`: temporary file, fsync,
+rename), so a reader, another process or a restarted API, sees the previous record or the new one, never half
+of one. Each write after the first increments the record's ``revision``. Writers of one record must be
+serialised by the caller (the API holds the session's lock, :class:`curvefm.session.live.LiveSessions`).
+"""
+
+from __future__ import annotations
+
+import re
+import time
+from pathlib import Path
+
+from curvefm.errors import CurvefmError
+from curvefm.session.record import SessionRecord
+from curvefm.store import atomic_write
+
+_SESSION_ID = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
+
+
+class UnknownSession(CurvefmError):
+    """No session has this id (or the id cannot name one)."""
+
+    def __init__(self, session_id: str):
+        self.session_id = session_id
+        super().__init__(f"no session with id '{session_id}'", kind="not_found")
+
+
+class SessionStore:
+    def __init__(self, data_dir: str | Path):
+        self.folder = Path(data_dir) / "sessions"
+
+    def exists(self, session_id: str) -> bool:
+        return well_formed(session_id) and self._path(session_id).is_file()
+
+    def read(self, session_id: str) -> SessionRecord:
+        if not self.exists(session_id):
+            raise UnknownSession(session_id)
+        return SessionRecord.model_validate_json(self._path(session_id).read_bytes())
+
+    def list(self) -> list[SessionRecord]:
+        """All records, the most recently changed first."""
+        records = [SessionRecord.model_validate_json(p.read_bytes()) for p in self.folder.glob("*.json")]
+        return sorted(records, key=lambda r: r.updated_at, reverse=True)
+
+    def create(self, record: SessionRecord) -> None:
+        """Write a new record as it is; an id in use is a conflict."""
+        if not well_formed(record.id):
+            raise CurvefmError(f"a session id is 1-64 letters, digits, '-' or '_', got '{record.id}'")
+        if self._path(record.id).exists():
+            raise CurvefmError(f"session '{record.id}' already exists", kind="conflict")
+        self._write(record)
+
+    def write(self, record: SessionRecord) -> SessionRecord:
+        """Replace the stored record by ``record`` with the next revision and the current time; returns what
+        was written."""
+        written = record.model_copy(update={"revision": record.revision + 1, "updated_at": time.time()})
+        self._write(written)
+        return written
+
+    def _write(self, record: SessionRecord) -> None:
+        atomic_write(self._path(record.id), record.model_dump_json(indent=1).encode())
+
+    def _path(self, session_id: str) -> Path:
+        return self.folder / f"{session_id}.json"
+
+
+def well_formed(session_id: str) -> bool:
+    """Whether ``session_id`` can name a session (and a file): 1-64 letters, digits, ``-`` or ``_``."""
+    return bool(_SESSION_ID.match(session_id))

@@ -1,0 +1,39 @@
+"""How to get what is missing, in HTTP terms, added to the messages of the core's errors (which name what is
+missing without saying how a client of this API obtains it)."""
+
+from __future__ import annotations
+
+import json
+
+from fastapi import FastAPI, Request
+from fastapi.responses import JSONResponse
+
+from curvefm.errors import CurvefmError
+from curvefm.service.errors import error_response
+from curvefm.session import BasisNeed, MissingBasis, UnknownSession, UnknownShape
+
+
+def with_hint(error: CurvefmError) -> CurvefmError:
+    """``error`` with what to request next; other errors unchanged."""
+    if isinstance(error, MissingBasis):
+        message = "; ".join(f"{need.describe()}; {basis_request(need)}" for need in error.needs)
+    elif isinstance(error, UnknownShape):
+        message = f"{error.message}; upload it with POST /shapes"
+    elif isinstance(error, UnknownSession):
+        message = f"{error.message}; GET /sessions lists them"
+    else:
+        return error
+    return CurvefmError(message, kind=error.kind)
+
+
+def basis_request(need: BasisNeed) -> str:
+    body = json.dumps({"k": need.k, "plugin": need.plugin, "params": need.params})
+    return f"request it with POST /shapes/{need.mesh_id}/bases {body} and wait for the job to finish"
+
+
+def install_hints(app: FastAPI) -> None:
+    async def hinted(request: Request, exc: CurvefmError) -> JSONResponse:
+        return error_response(with_hint(exc))
+
+    for error_type in (MissingBasis, UnknownShape, UnknownSession):
+        app.add_exception_handler(error_type, hinted)

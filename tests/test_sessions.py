@@ -1,0 +1,142 @@
+"""The session domain without HTTP: records on disk, the live cache, the edit operations."""
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+from shapes import basis_of, ellipsoid
+
+from curvefm import registry
+from curvefm.errors import CurvefmError
+from curvefm.session import (
+    CurveSpec,
+    LiveSessions,
+    MissingBasis,
+    SessionCreate,
+    SessionEditor,
+    SessionRecord,
+    SessionStore,
+    UnknownSession,
+    UnknownShape,
+    build_solver,
+    load_pair,
+)
+from curvefm.session.live import LOCK_STRIPES
+from curvefm.store import Store
+
+K = 20
+ENDPOINTS = [(0, 600), (100, 900), (250, 1100), (40, 700)]
+
+
+@pytest.fixture(scope="module")
+def shapes():
+    M, N = ellipsoid(), ellipsoid(radii=(1.1, 0.6, 0.55))
+    return [(mesh, basis_of(mesh, K)) for mesh in (M, N)]
+
+
+@pytest.fixture
+def store(tmp_path, shapes):
+    store = Store(tmp_path / "data")
+    params = registry.get("basis", "laplace-beltrami").parse_params({}).model_dump()
+    for mesh, basis in shapes:
+        store.put_basis(store.put_mesh(mesh), basis, "laplace-beltrami", params)
+    return store
+
+
+def editor_on(store, size=32):
+    records = SessionStore(store.root)
+    return SessionEditor(records, LiveSessions(store, records, size))
+
+
+def new_session(editor, store, **params):
+    source, target = store.mesh_ids()
+    return editor.create(SessionCreate(source=source, target=target, k=K, **params))
+
+
+def curve(i):
+    a, b = ENDPOINTS[i]
+    return CurveSpec(source=[a, b], target=[a, b])
+
+
+def test_every_edit_is_on_disk_with_the_next_revision_before_it_returns(store):
+    editor = editor_on(store)
+    session = new_session(editor, store)
+    assert session.revision == 0 and editor.records.read(session.id) == session
+    ids = [editor.add_curve(session.id, curve(i))[0].id for i in range(3)]
+    editor.remove_curve(session.id, "c2")
+    added, summary = editor.add_curve(session.id, curve(3))
+    editor.replace_curve(session.id, "c1", curve(1).model_copy(update={"weight": 2.0}))
+    stored = editor.records.read(session.id)
+    assert ids == ["c1", "c2", "c3"] and added.id == "c4"  # removed ids are not handed out again
+    assert (summary.revision, stored.revision) == (5, 6)
+    assert [c.id for c in stored.curves] == ["c1", "c3", "c4"] and stored.curves[0].spec.weight == 2.0
+    C_MN, C_NM, record = editor.maps(session.id)
+    assert record == stored
+    rebuilt = build_solver(stored, load_pair(store, stored))  # what a worker or a restarted API builds
+    np.testing.assert_allclose(rebuilt.C_MN, C_MN, atol=1e-12)
+    np.testing.assert_allclose(rebuilt.C_NM, C_NM, atol=1e-12)
+    editor.live.close()
+
+    restarted = editor_on(store)
+    assert restarted.add_curve(session.id, curve(0))[0].id == "c5"
+    assert restarted.records.read(session.id).revision == 7
+    restarted.live.close()
+
+
+def test_the_live_cache_is_bounded_and_rebuilds_evicted_sessions_from_disk(store):
+    editor = editor_on(store, size=1)
+    first, second = new_session(editor, store), new_session(editor, store)
+    editor.add_curve(first.id, curve(0))
+    editor.add_curve(second.id, curve(1))  # evicts the first
+    assert editor.live.peek(first.id) is None
+    _, summary = editor.add_curve(first.id, curve(2))
+    assert (summary.n_curves, summary.revision) == (2, 2)
+    values, revision = editor.transfer(first.id, "xyz")
+    assert values.shape == (store.get_mesh(first.target).n_vertices, 3) and revision == 2
+    editor.live.close()
+
+
+def test_the_lock_table_does_not_grow_with_the_ids_asked_for(store):
+    live = LiveSessions(store, SessionStore(store.root))
+    locks = {id(live.lock(f"session-{i}")) for i in range(10_000)}
+    assert len(locks) == LOCK_STRIPES
+    assert live.lock("abc") is live.lock("abc")
+    live.close()
+
+
+def test_missing_things_are_named_without_saying_how_to_get_them(store):
+    editor = editor_on(store)
+    source, target = store.mesh_ids()
+    with pytest.raises(MissingBasis) as missing:
+        editor.create(SessionCreate(source=source, target=target, k=K + 5))
+    assert [need.role for need in missing.value.needs] == ["source", "target"]
+    assert missing.value.kind == "conflict" and f"k >= {K + 5}" in missing.value.message
+    with pytest.raises(UnknownShape, match="no target shape with id 'feed'"):
+        editor.create(SessionCreate(source=source, target="feed", k=K))
+    for session_id in ("nope", "../sessions/x"):
+        with pytest.raises(UnknownSession, match="no session with id"):
+            editor.add_curve(session_id, curve(0))
+    for error in (missing.value, UnknownShape("feed"), UnknownSession("nope")):
+        assert "POST" not in error.message and "GET" not in error.message
+    editor.live.close()
+
+
+def test_an_id_in_use_and_a_curve_that_is_not_there_are_refused(store):
+    editor = editor_on(store)
+    session = new_session(editor, store)
+    with pytest.raises(CurvefmError, match="already exists") as taken:
+        editor.records.create(session)
+    assert taken.value.kind == "conflict"
+    with pytest.raises(CurvefmError, match="no curve 'c7'.*none yet") as absent:
+        editor.remove_curve(session.id, "c7")
+    assert absent.value.kind == "not_found"
+    editor.live.close()
+
+
+@pytest.mark.parametrize(("field", "value"), [("k", 0), ("alpha", -1.0), ("alpha", float("inf")), ("samples", 1)])
+def test_solver_parameters_are_validated_by_the_request_and_the_record(field, value):
+    with pytest.raises(ValidationError, match=field):
+        SessionCreate(source="a", target="b", **{field: value})
+    fields = {"id": "s", "source": "a", "target": "b", "k": 10, "alpha": 1.0, "samples": 100, "tracer": "geodesic",
+              "basis_plugin": "laplace-beltrami", "basis_params": {}, "created_at": 0.0, "updated_at": 0.0}  # fmt: skip
+    with pytest.raises(ValidationError, match=field):
+        SessionRecord(**(fields | {field: value}))
