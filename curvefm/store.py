@@ -4,7 +4,7 @@ Layout under the root (``CURVEFM_DATA``, default ``~/.local/share/curvefm``)::
 
     meshes/<mesh hash>.npz                         validated mesh arrays
     bases/<mesh hash>/<plugin>-k<k>-<params>.npz   eigenbases
-    sessions/<session id>.json                     written by the service
+    sessions/<session id>.json                     session records (curvefm.session.SessionStore)
 
 Every write goes to a temporary file that is fsync'ed and renamed into place, so readers (other processes,
 other machines on a shared volume) see either nothing or a whole file, and a crash never leaves half a file.

@@ -21,6 +21,7 @@ from curvefm import registry
 from curvefm.errors import CurvefmError
 from curvefm.fmap import FunctionTransfer
 from curvefm.geometry import Mesh, texture_coordinates
+from curvefm.registry import Plugin
 from curvefm.session.curves import CurveSpec, trace_pair
 from curvefm.session.live import LiveSession, LiveSessions
 from curvefm.session.pair import MissingBasis, basis_available, basis_needs, internal_paths
@@ -47,7 +48,9 @@ class SessionEditor:
     whose error lists the installed plugins.
     """
 
-    def __init__(self, records: SessionStore, live: LiveSessions, find_plugin: Callable = registry.get):
+    def __init__(
+        self, records: SessionStore, live: LiveSessions, find_plugin: Callable[[str, str], Plugin] = registry.get
+    ):
         self.records, self.live, self.find_plugin = records, live, find_plugin
 
     def create(self, request: SessionCreate, session_id: str | None = None) -> SessionRecord:
