@@ -264,7 +264,7 @@ def feature_field(mesh: Mesh, smoothing: int = 2) -> tuple[np.ndarray, np.ndarra
 def anisotropic_weights(mesh: Mesh, params: AnisotropicParams) -> np.ndarray:
     """Edge costs (aligned with ``mesh.edges``) of the anisotropic metric; see the module docstring."""
     key = ("anisotropic feature field", params.smoothing)
-    directions, anisotropy = mesh.derived.get_or_compute(key, lambda: feature_field(mesh, params.smoothing))
+    directions, anisotropy = mesh.derived.get(key, lambda: feature_field(mesh, params.smoothing))
     positive = anisotropy[anisotropy > 1e-12 * max(float(anisotropy.max()), 0.0)]
     length = mesh.edge_lengths
     if positive.size == 0 or params.strength == 0:
@@ -283,7 +283,7 @@ def anisotropic_weights(mesh: Mesh, params: AnisotropicParams) -> np.ndarray:
 def anisotropic_graph(mesh: Mesh, params: AnisotropicParams) -> sp.csr_matrix:
     """The anisotropic edge graph, cached on the mesh per parameters."""
     key = ("anisotropic graph", params.strength, params.smoothing, params.saturation_percentile)
-    return mesh.derived.get_or_compute(
+    return mesh.derived.get(
         key, lambda: edge_weight_graph(mesh.n_vertices, mesh.edges, anisotropic_weights(mesh, params))
     )
 

@@ -60,7 +60,7 @@ def geodesic_graph(mesh: Mesh, diagonals: bool = True) -> sp.csr_matrix:
     """
     if not diagonals:
         return mesh.edge_graph
-    return mesh.derived.get_or_compute(("geodesic graph with diagonals",), lambda: _graph_with_diagonals(mesh))
+    return mesh.derived.get(("geodesic graph with diagonals",), lambda: _graph_with_diagonals(mesh))
 
 
 def _graph_with_diagonals(mesh: Mesh) -> sp.csr_matrix:
@@ -129,7 +129,7 @@ def geodesic_diameter(mesh: Mesh, *, diagonals: bool = True, max_sweeps: int = 6
     the component of the starting vertex.
     """
     key = ("geodesic diameter", bool(diagonals))
-    return mesh.derived.get_or_compute(key, lambda: _double_sweep(mesh, geodesic_graph(mesh, diagonals), max_sweeps))
+    return mesh.derived.get(key, lambda: _double_sweep(mesh, geodesic_graph(mesh, diagonals), max_sweeps))
 
 
 def _double_sweep(mesh: Mesh, graph: sp.csr_matrix, max_sweeps: int) -> float:

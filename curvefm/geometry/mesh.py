@@ -8,15 +8,13 @@ no face uses, they are dropped; ``file_ids[i]`` is the id in the file of interna
 from __future__ import annotations
 
 import hashlib
-import threading
-from collections import OrderedDict
-from collections.abc import Callable, Hashable
 from dataclasses import asdict, dataclass, field
 from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
 
+from curvefm.cache import LRU
 from curvefm.errors import CurvefmError
 
 
@@ -36,40 +34,6 @@ class MeshReport:
         return asdict(self)
 
 
-class DerivedData:
-    """Values that other modules compute from one mesh (geodesic graphs, the diameter, a tracer's feature field
-    and weighted graphs), kept with the mesh: a mesh never changes, so what is derived from it lives and dies
-    with it. At most ``maxsize`` values: parameters a user chooses make keys, so the least recently used value
-    is dropped first. Thread-safe; a missing value is computed outside the lock, so a slow computation does
-    not block lookups of others (two threads may both compute it)."""
-
-    def __init__(self, maxsize: int):
-        self.maxsize = maxsize
-        self._values: OrderedDict[Hashable, object] = OrderedDict()
-        self._lock = threading.Lock()
-
-    def get_or_compute(self, key: Hashable, compute: Callable[[], object]):
-        """The value stored under ``key`` (a tuple starting with the name of what it is), or ``compute()``."""
-        with self._lock:
-            if key in self._values:
-                self._values.move_to_end(key)
-                return self._values[key]
-        value = compute()
-        with self._lock:
-            self._values[key] = value
-            self._values.move_to_end(key)
-            while len(self._values) > self.maxsize:
-                self._values.popitem(last=False)
-        return value
-
-    def clear(self) -> None:
-        with self._lock:
-            self._values.clear()
-
-    def __len__(self) -> int:
-        return len(self._values)
-
-
 @dataclass(frozen=True, eq=False)
 class Mesh:
     vertices: np.ndarray  # (n, 3) float64
@@ -80,8 +44,9 @@ class Mesh:
     uv: np.ndarray | None = None  # (n, 2) per-vertex texture coordinates, if the file had them
     texture_path: str | None = None  # texture image named by the file's material, if any
     name: str = ""
-    derived: DerivedData = field(default_factory=lambda: DerivedData(maxsize=8), init=False, repr=False)
-    """Cache of quantities computed from the mesh by other modules (see :class:`DerivedData`)."""
+    derived: LRU = field(default_factory=lambda: LRU(maxsize=8), init=False, repr=False)
+    """Values other modules compute from this mesh (geodesic graphs, the diameter, a tracer's weighted graphs): a
+    mesh never changes, so what is derived from it lives and dies with it. Bounded: user parameters make keys."""
 
     @property
     def n_vertices(self) -> int:

@@ -11,11 +11,9 @@ curves a user draws, kept as a record on disk and, in a long-running process, li
 * ``live``: :class:`LiveSessions`, the bounded in-memory cache of solvers, shapes, bases and transfers, with a
   fixed set of locks;
 * ``editing``: :class:`SessionEditor`, the operations (create, add / replace / remove a curve, maps,
-  transfer), each written to disk before it returns;
-* ``cache``: the thread-safe :class:`LRU` the cache is made of.
+  transfer), each written to disk before it returns.
 """
 
-from curvefm.session.cache import LRU
 from curvefm.session.curves import CurvesFile, CurveSpec, read_curves, trace_curve, trace_pair
 from curvefm.session.editing import MapSummary, SessionEditor, TransferFunction, source_function
 from curvefm.session.live import LiveSession, LiveSessions, UnknownShape
@@ -34,7 +32,6 @@ from curvefm.session.record_store import SessionStore, UnknownSession
 from curvefm.spectral import ShapePair  # defined below the maps that use it; the session's pair is the same type
 
 __all__ = [
-    "LRU",
     "Alpha",
     "BasisNeed",
     "CurveRecord",

@@ -16,10 +16,10 @@ import zlib
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
+from curvefm.cache import LRU
 from curvefm.errors import CurvefmError
 from curvefm.fmap import CurveMapSolver, FunctionTransfer
 from curvefm.geometry import Mesh
-from curvefm.session.cache import LRU
 from curvefm.session.pair import BasisNeed, ShapePair, basis_needs, build_solver, load_basis
 from curvefm.session.record import SessionRecord
 from curvefm.session.record_store import SessionStore

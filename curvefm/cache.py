@@ -1,5 +1,6 @@
-"""A small thread-safe least-recently-used cache, for what is rebuilt from the store on demand (meshes, bases,
-live sessions, projected transfer functions): bounded, so memory stays flat however many are asked for."""
+"""A small thread-safe least-recently-used cache, for what is rebuilt on demand: values derived from a mesh
+(geodesic graphs, a tracer's weighted graphs), and what the service rebuilds from the store (meshes, bases, live
+sessions, projected transfer functions). Bounded, so memory stays flat however many are asked for."""
 
 from __future__ import annotations
 
@@ -47,3 +48,7 @@ class LRU(Generic[V]):
     def clear(self) -> None:
         with self._lock:
             self._items.clear()
+
+    def __len__(self) -> int:
+        with self._lock:
+            return len(self._items)
