@@ -8,7 +8,7 @@ from typing import Annotated
 
 from fastapi import Depends, Request
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import InvalidInput
 from curvefm.service.errors import require_plugin
 from curvefm.service.models import JobInfoModel
 from curvefm.service.settings import Settings
@@ -49,7 +49,7 @@ def start_services(settings: Settings) -> Services:
         try:
             queue.ping()
         except Exception as exc:
-            raise CurvefmError(f"cannot reach Redis at {settings.redis_url}: {exc}") from None
+            raise InvalidInput(f"cannot reach Redis at {settings.redis_url}: {exc}") from None
         services.stop_events.append(start_reaper(queue.connection, list(queue.queues.values()), REAPER_INTERVAL_S))
     return services
 

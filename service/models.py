@@ -18,10 +18,17 @@ from curvefm.session import CurveRecord, MapSummary
 JobStateName = Literal["queued", "started", "finished", "failed", "canceled"]
 
 
+class FieldProblem(BaseModel):
+    field: str = Field(description="where in the request, e.g. body.k")
+    problem: str
+
+
 class ErrorBody(BaseModel):
-    error: str = Field(description="invalid, not_found, conflict or too_large")
+    error: str = Field(description="invalid, not_found, conflict, too_large or internal")
     detail: str = Field(description="what was wrong and what to do")
     available: list[str] | None = Field(None, description="installed plugins of the kind asked for")
+    fields: list[FieldProblem] | None = Field(None, description="each field that failed validation (422)")
+    error_id: str | None = Field(None, description="internal errors (500): the id the server log files it under")
 
 
 class BasisInfo(BaseModel):

@@ -19,7 +19,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from typing import Literal
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import Conflict, CurvefmError, InvalidInput, NotFound
 from curvefm.progress import Cancelled
 from curvefm.workers import jobs
 from curvefm.workers.context import JobContext, embedded_job, progress_fraction
@@ -55,28 +55,28 @@ class JobQueue(ABC):
 
     @abstractmethod
     def get(self, job_id: str) -> JobInfo:
-        """The job's current state; raises a ``not_found`` error for unknown ids."""
+        """The job's current state; raises :class:`~curvefm.errors.NotFound` for unknown ids."""
 
     @abstractmethod
     def cancel(self, job_id: str) -> JobInfo:
-        """Cancel a queued job at once, or ask a running one to stop; ended jobs raise a ``conflict``."""
+        """Cancel a queued job at once, or ask a running one to stop; ended jobs raise a ``Conflict``."""
 
     @abstractmethod
     def close(self) -> None:
         """Release threads and connections."""
 
 
-def unknown_job(job_id: str) -> CurvefmError:
-    return CurvefmError(f"no job with id '{job_id}' (finished jobs are forgotten after a while)", kind="not_found")
+def unknown_job(job_id: str) -> NotFound:
+    return NotFound(f"no job with id '{job_id}' (finished jobs are forgotten after a while)")
 
 
-def already_ended(info: JobInfo) -> CurvefmError:
-    return CurvefmError(f"job {info.id} already {info.state}; there is nothing to cancel", kind="conflict")
+def already_ended(info: JobInfo) -> Conflict:
+    return Conflict(f"job {info.id} already {info.state}; there is nothing to cancel")
 
 
 def check_kind(kind: str) -> None:
     if kind not in JOB_FUNCTIONS:
-        raise CurvefmError(f"unknown job kind '{kind}'; kinds are {', '.join(JOB_FUNCTIONS)}")
+        raise InvalidInput(f"unknown job kind '{kind}'; kinds are {', '.join(JOB_FUNCTIONS)}")
 
 
 def readable_error(exc: BaseException) -> str:

@@ -181,7 +181,7 @@ def readable_failure(exc: str | None, job: Job) -> str:
             "machine went down) and no retries were left"
         )
     last = [line for line in exc.strip().splitlines() if line.strip()][-1]
-    return last.removeprefix("curvefm.errors.CurvefmError: ")
+    return re.sub(r"^curvefm\.errors\.\w+: ", "", last)
 
 
 def _timestamp(moment: datetime | None) -> float | None:
