@@ -121,6 +121,6 @@ def _wait(services: Services, job_id: str, what: str, stop: threading.Event) -> 
         if info.state == "finished":
             return True
         if info.state in ("failed", "canceled"):
-            raise InternalError(f"demo: {what} {info.state}: {info.error or info.message}")
+            raise InternalError(f"demo: {what} {info.state}: {info.error.message if info.error else info.message}")
         stop.wait(0.5)
     return False

@@ -8,14 +8,11 @@ mesh payload translates). The session models the API shares with the core (``Ses
 
 from __future__ import annotations
 
-from typing import Literal
-
 from pydantic import BaseModel, ConfigDict, Field
 
 from curvefm.fmap import DEFAULT_K
 from curvefm.session import CurveRecord, MapSummary
-
-JobStateName = Literal["queued", "started", "finished", "failed", "canceled"]
+from curvefm.workers.interface import JobState
 
 
 class FieldProblem(BaseModel):
@@ -55,16 +52,20 @@ class BasisRequest(BaseModel):
     params: dict = Field(default_factory=dict, description="the basis plugin's parameters (GET /plugins)")
 
 
+class JobError(BaseModel):
+    kind: str = Field(description="invalid, not_found, conflict, too_large, internal or worker_lost")
+    message: str = Field(description="one readable line")
+
+
 class JobInfoModel(BaseModel):
     id: str
     kind: str = Field(description="basis or refine")
-    state: JobStateName
+    state: JobState
     progress: float = Field(description="0..1")
     message: str
     result: dict | None = None
     links: dict[str, str] = Field(default_factory=dict, description="where to fetch what the job produced")
-    error: str | None = Field(None, description="one readable line when the job failed")
-    traceback: str | None = None
+    error: JobError | None = Field(None, description="why the job failed (when it failed)")
     worker: str | None = None
     created_at: float | None = None
     started_at: float | None = None

@@ -20,7 +20,7 @@ _SAFE_NAME = re.compile(r"^[A-Za-z0-9_-][A-Za-z0-9_.-]{0,127}$")
 
 @router.get("/jobs/{job_id}", response_model=JobInfoModel, responses=ERRORS, tags=["jobs"])
 def get_job(job_id: str, services: ServicesDep) -> JobInfoModel:
-    """State, progress (0..1 with a message), links to results, or a readable error (with the traceback)."""
+    """State, progress (0..1 with a message), links to results, or why the job failed (a kind and one line)."""
     return job_model(services.queue.get(job_id))
 
 

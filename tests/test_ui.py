@@ -190,7 +190,7 @@ def failed_job() -> dict:
         "state": "failed",
         "progress": 0.3,
         "message": "failed",
-        "error": "worker exploded",
+        "error": {"kind": "internal", "message": "worker exploded"},
         "links": {},
     }
 

@@ -93,3 +93,7 @@ def _publish(final: Path, write) -> list[str]:
         shutil.rmtree(staging, ignore_errors=True)
         raise
     return sorted(p.name for p in final.iterdir())
+
+
+JOB_FUNCTIONS = {"basis": compute_basis, "refine": refine}
+"""The function each job kind runs (``curvefm.workers.interface.JOB_KINDS``)."""

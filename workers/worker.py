@@ -25,7 +25,8 @@ def worker_main(
     from rq import Queue, Worker
 
     from curvefm.workers import jobs  # noqa: F401  (imported here so work horses inherit it)
-    from curvefm.workers.rq_queue import queue_names, start_reaper
+    from curvefm.workers.reaper import start_reaper
+    from curvefm.workers.rq_queue import queue_names
 
     url = redis_url or os.environ.get("CURVEFM_REDIS_URL")
     if not url:
