@@ -12,6 +12,7 @@ import uuid
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from starlette.exceptions import HTTPException
 
 from curvefm import registry
 from curvefm.errors import Conflict, CurvefmError, InternalError, InvalidInput, NotFound, ResourceLimit
@@ -28,6 +29,8 @@ STATUS: dict[type[CurvefmError], int] = {
     ResourceLimit: 413,
     InternalError: 500,
 }
+CODE = {status: cls.code for cls, status in STATUS.items()}
+"""The ``error`` code of a status (for the framework's own errors: unknown paths, methods not allowed)."""
 
 
 class UnknownPlugin(InvalidInput):
@@ -84,6 +87,11 @@ def install_error_handlers(app: FastAPI) -> None:
     @app.exception_handler(Exception)
     async def unexpected_error(request: Request, exc: Exception) -> JSONResponse:
         return internal_error_response(request, exc)
+
+    @app.exception_handler(HTTPException)
+    async def http_error(request: Request, exc: HTTPException) -> JSONResponse:
+        body = {"error": CODE.get(exc.status_code, InvalidInput.code), "detail": str(exc.detail)}
+        return JSONResponse(body, status_code=exc.status_code, headers=exc.headers)
 
     @app.exception_handler(RequestValidationError)
     async def validation_error(request: Request, exc: RequestValidationError) -> JSONResponse:

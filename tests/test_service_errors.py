@@ -136,7 +136,7 @@ def test_upload_over_the_size_limit(server):
     ],
 )
 def test_unknown_ids(server, path):
-    assert server.client.get(path).status_code == 404
+    expect(server.client.get(path), 404, "not_found")
 
 
 def test_unknown_ids_in_edits(server):
@@ -146,6 +146,7 @@ def test_unknown_ids_in_edits(server):
     expect(server.client.put(f"/sessions/{server.session}/curves/c99", json=curve), 404, "not_found", "c99")
     expect(server.client.delete(f"/sessions/{server.session}/curves/c99"), 404, "not_found", "c99")
     expect(server.client.delete("/jobs/nope"), 404, "not_found", "nope")
+    expect(server.client.put("/plugins"), 405, "invalid", "Method Not Allowed")
     body = {"source": "feedbeef", "target": server.shapes[1], "k": K}
     expect(server.client.post("/sessions", json=body), 404, "not_found", "feedbeef", "source")
 
