@@ -27,7 +27,7 @@ from curvefm.matching import MatchResult, match
 from curvefm.runtime import limit_blas_threads
 from curvefm.session import CurveRecord, CurveSpec, SessionRecord
 from curvefm.store import Store
-from curvefm.workers.queue import EmbeddedQueue
+from curvefm.workers.embedded import EmbeddedQueue
 
 PAIRS = {
     "faust_000_011": ("faust/tr_reg_000.off", "faust/tr_reg_011.off"),
@@ -106,7 +106,7 @@ def run_worker_job(store: Store, result: MatchResult, curves, truth) -> dict:
     seconds = time.perf_counter() - start
     out = {"converter": "rhm", "state": info.state, "wall_seconds": seconds, "progress_reports": len(reports)}
     if info.state != "finished":
-        return out | {"error": info.error}
+        return out | {"error": info.error.message if info.error else info.message}
     p2p_file = np.load(store.root / "results" / job_id / "p2p_source_to_target.npy")
     mesh_M, mesh_N = result.pair.meshes
     p2p_MN = mesh_N.internal_ids(p2p_file[mesh_M.file_ids])

@@ -10,7 +10,7 @@ import argparse
 import json
 import sys
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import CurvefmError, InternalError, InvalidInput
 from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K
 from curvefm.runtime import limit_blas_threads
 
@@ -53,9 +53,9 @@ def _json_option(text: str, option: str) -> dict:
     try:
         value = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise CurvefmError(f"{option} must be a JSON object: {exc}") from None
+        raise InvalidInput(f"{option} must be a JSON object: {exc}") from None
     if not isinstance(value, dict):
-        raise CurvefmError(f"{option} must be a JSON object, got {text!r}")
+        raise InvalidInput(f"{option} must be a JSON object, got {text!r}")
     return value
 
 
@@ -197,6 +197,9 @@ def main(argv: list[str] | None = None) -> int:
     limit_blas_threads()
     try:
         return args.run(args)
+    except InternalError as exc:
+        print(f"curvefm: internal error: {exc.message}", file=sys.stderr)
+        return 1
     except CurvefmError as exc:
         print(f"curvefm: error: {exc.message}", file=sys.stderr)
         return 2

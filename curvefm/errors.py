@@ -1,14 +1,45 @@
-"""The one exception type for errors a user can cause."""
+"""The project's exceptions: one base type, and a subclass per kind of failure.
+
+Raise the subclass that says whose fault it is; catch :class:`CurvefmError` to handle them all. Each class has
+a ``code``, the short name programs see (the HTTP API's ``error`` field, a failed job's ``kind``); HTTP
+statuses are chosen in :mod:`curvefm.service.errors`, not here.
+
+* :class:`InvalidInput`: bad input a user can fix (bad mesh, unknown plugin, vertex out of range, wrong k).
+* :class:`NotFound`: no such shape, session, curve, job or file.
+* :class:`Conflict`: the request is well formed but the state does not allow it (e.g. bases not computed yet).
+* :class:`ResourceLimit`: the input is larger than a configured limit.
+* :class:`InternalError`: our failure, not the user's (an eigensolver or LAPACK failure, a non-finite result).
+"""
 
 
 class CurvefmError(Exception):
-    """Bad input or an impossible request, with a message that says what was wrong and what to do.
+    """An error the project raises on purpose, with a message that says what was wrong and what to do.
 
-    ``kind`` lets the HTTP layer pick a status code without parsing messages:
-    ``"invalid"`` (400/422), ``"not_found"`` (404), ``"conflict"`` (409), ``"too_large"`` (413).
+    Raised as such (e.g. by a third-party plugin), it counts as invalid input.
     """
 
-    def __init__(self, message: str, *, kind: str = "invalid"):
+    code = "invalid"
+
+    def __init__(self, message: str):
         super().__init__(message)
         self.message = message
-        self.kind = kind
+
+
+class InvalidInput(CurvefmError):
+    code = "invalid"
+
+
+class NotFound(CurvefmError):
+    code = "not_found"
+
+
+class Conflict(CurvefmError):
+    code = "conflict"
+
+
+class ResourceLimit(CurvefmError):
+    code = "too_large"
+
+
+class InternalError(CurvefmError):
+    code = "internal"

@@ -14,7 +14,7 @@ import numpy as np
 from pydantic import BaseModel
 
 from curvefm import registry
-from curvefm.errors import CurvefmError
+from curvefm.errors import InvalidInput
 from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K, DEFAULT_SAMPLES, FunctionalMaps, Hints, transfer
 from curvefm.geometry import Mesh, save_mesh, texture_coordinates
 from curvefm.pointwise import PointwiseMaps
@@ -100,7 +100,7 @@ def match(
     pair = pair_with_basis_size(store, (mesh_M, mesh_N), basis_k, progress=scaled(progress, 0.0, 0.8))
     paths = [trace_pair(mesh_M, mesh_N, c, tracer) if isinstance(c, CurveSpec) else c for c in curves]
     if not paths:
-        raise CurvefmError("at least one pair of curves is needed to compute a map")
+        raise InvalidInput("at least one pair of curves is needed to compute a map")
     weights = [c.weight if isinstance(c, CurveSpec) else 1.0 for c in curves]
     fmaps = method_plugin.run(pair.truncated(k), Hints.from_curves(paths, weights), method_parsed, no_progress)
     return convert(pair, fmaps, converter_plugin, converter_parsed, scaled(progress, 0.8, 1.0), method, paths)

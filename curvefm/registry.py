@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Generic, TypeVar
 
 from pydantic import BaseModel, ValidationError
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import InvalidInput
 
 if TYPE_CHECKING:
     import numpy as np
@@ -61,7 +61,7 @@ class Plugin(Generic[P]):
             problems = "; ".join(
                 f"{'.'.join(str(p) for p in e['loc']) or 'params'}: {e['msg']}" for e in exc.errors()
             )
-            raise CurvefmError(f"bad parameters for '{self.name}': {problems}") from None
+            raise InvalidInput(f"bad parameters for '{self.name}': {problems}") from None
 
     def describe(self) -> dict:
         return {"name": self.name, "description": self.description, "parameters": self.Params.model_json_schema()}
@@ -104,7 +104,7 @@ KINDS: dict[str, tuple[str, type[Plugin]]] = {
 
 def _kind(kind: str) -> tuple[str, type[Plugin]]:
     if kind not in KINDS:
-        raise CurvefmError(f"unknown plugin kind '{kind}'; kinds are {', '.join(KINDS)}")
+        raise InvalidInput(f"unknown plugin kind '{kind}'; kinds are {', '.join(KINDS)}")
     return KINDS[kind]
 
 
@@ -126,13 +126,13 @@ def get(kind: str, name: str) -> Plugin:
     group, contract = _kind(kind)
     matches = [ep for ep in _entry_points(group) if ep.name == name]
     if not matches:
-        raise CurvefmError(
-            f"unknown {kind} '{name}'; installed {kind}s: {', '.join(names(kind)) or 'none'}", kind="invalid"
+        raise InvalidInput(
+            f"unknown {kind} '{name}'; installed {kind}s: {', '.join(names(kind)) or 'none'}"
         )
     plugin = matches[0].load()
     if not isinstance(plugin, contract):
         ep = matches[0]
-        raise CurvefmError(
+        raise InvalidInput(
             f"the distribution '{ep.dist.name}' registers '{ep.name} = {ep.value}' in the entry-point group "
             f"'{group}', but that object is a {type(plugin).__name__}, not a curvefm.registry.{contract.__name__}"
         )

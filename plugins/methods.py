@@ -12,7 +12,7 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import InvalidInput
 from curvefm.fmap import (
     DEFAULT_ALPHA,
     DEFAULT_SAMPLES,
@@ -48,7 +48,7 @@ def run_curves(
     pair: ShapePair, hints: Hints, params: CurvesParams, progress: Progress = no_progress
 ) -> FunctionalMaps:
     if not hints.curves:
-        raise CurvefmError("the 'curves' method needs at least one pair of curves")
+        raise InvalidInput("the 'curves' method needs at least one pair of curves")
     k = min(pair.basis_M.k, pair.basis_N.k)
     solver = CurveMapSolver(
         pair.mesh_M.vertices, pair.basis_M, pair.mesh_N.vertices, pair.basis_N,
@@ -88,7 +88,7 @@ def landmark_descriptors(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Corresponding descriptor columns on M and N: WKS, and the wave kernel maps at the landmarks."""
     if params.landmarks and len(hints.landmarks) == 0:
-        raise CurvefmError("the descriptor methods need at least one landmark (or one curve), or landmarks=false")
+        raise InvalidInput("the descriptor methods need at least one landmark (or one curve), or landmarks=false")
     out = []
     for side, basis in ((0, pair.basis_M), (1, pair.basis_N)):
         spectral = _spectrum(basis, params.spectrum)
@@ -101,7 +101,7 @@ def landmark_descriptors(
 
 def curve_descriptors(pair: ShapePair, hints: Hints) -> tuple[np.ndarray, np.ndarray]:
     if not hints.curves:
-        raise CurvefmError("NO17 with inputs='curves' needs at least one pair of curves")
+        raise InvalidInput("NO17 with inputs='curves' needs at least one pair of curves")
     F_M = np.column_stack([curve_function(pair.mesh_M.vertices, pm) for pm, _ in hints.curves])
     F_N = np.column_stack([curve_function(pair.mesh_N.vertices, pn) for _, pn in hints.curves])
     return normalised(pair.basis_M, F_M), normalised(pair.basis_N, F_N)
@@ -109,7 +109,7 @@ def curve_descriptors(pair: ShapePair, hints: Hints) -> tuple[np.ndarray, np.nda
 
 def _spectrum(basis: Basis, size: int) -> Basis:
     if size > basis.k:
-        raise CurvefmError(f"spectrum = {size} eigenpairs asked for, but the basis has only {basis.k}")
+        raise InvalidInput(f"spectrum = {size} eigenpairs asked for, but the basis has only {basis.k}")
     return basis.truncated(size)
 
 

@@ -55,7 +55,7 @@ import scipy.sparse as sp
 from pydantic import BaseModel, ConfigDict, Field
 from scipy.sparse.csgraph import dijkstra
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import InvalidInput
 from curvefm.geometry import Mesh, edge_weight_graph, shortest_path
 from curvefm.registry import TracerPlugin
 
@@ -67,9 +67,9 @@ def _check_endpoints(mesh: Mesh, start, end) -> tuple[int, int]:
     out = []
     for what, v in (("start", start), ("end", end)):
         if isinstance(v, bool) or not isinstance(v, int | np.integer):
-            raise CurvefmError(f"{what} vertex must be an integer vertex id, got {v!r}")
+            raise InvalidInput(f"{what} vertex must be an integer vertex id, got {v!r}")
         if not 0 <= int(v) < mesh.n_vertices:
-            raise CurvefmError(
+            raise InvalidInput(
                 f"{what} vertex {int(v)} is out of range: mesh '{mesh.name}' has {mesh.n_vertices} vertices "
                 f"(internal ids 0..{mesh.n_vertices - 1})"
             )

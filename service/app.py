@@ -9,10 +9,10 @@ from pathlib import Path
 
 from fastapi import FastAPI
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import ResourceLimit
 from curvefm.service import routes_jobs, routes_sessions, routes_shapes
 from curvefm.service.deps import start_services
-from curvefm.service.errors import error_response, install_error_handlers
+from curvefm.service.errors import error_response, error_responses, install_error_handlers
 from curvefm.service.hints import install_hints
 from curvefm.service.settings import Settings
 from curvefm.service.ui import mount_ui
@@ -21,7 +21,8 @@ DESCRIPTION = """Interactive curve-constrained functional maps between 3D shapes
 
 Upload shapes, request their bases (a job), create a session on a pair, add corresponding curves (answered at
 once), fetch the map or a transferred function, and request pointwise maps (a job). Vertex ids are 0-based
-ids in the uploaded files. Errors are JSON: `{"error": kind, "detail": message}`."""
+ids in the uploaded files. Errors are JSON: `{"error": kind, "detail": message}`; an internal error (500)
+adds an `error_id` that the server log files its details under."""
 
 
 class BodySizeLimit:
@@ -34,10 +35,9 @@ class BodySizeLimit:
         if scope["type"] == "http":
             declared = dict(scope["headers"]).get(b"content-length", b"")
             if declared.isdigit() and int(declared) > self.limit:
-                error = CurvefmError(
+                error = ResourceLimit(
                     f"request body of {int(declared)} bytes is larger than the limit of {self.limit} bytes "
                     "(set CURVEFM_MAX_UPLOAD_BYTES to change it)",
-                    kind="too_large",
                 )
                 await error_response(error)(scope, receive, send)
                 return
@@ -60,7 +60,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         finally:
             services.close()
 
-    app = FastAPI(title="curvefm", version="0.1.0", description=DESCRIPTION, lifespan=lifespan)
+    app = FastAPI(
+        title="curvefm", version="0.1.0", description=DESCRIPTION, lifespan=lifespan, responses=error_responses(500)
+    )
     install_error_handlers(app)
     install_hints(app)
     app.add_middleware(BodySizeLimit, limit=settings.max_upload_bytes)

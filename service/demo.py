@@ -13,7 +13,7 @@ import threading
 import numpy as np
 
 from curvefm import registry
-from curvefm.errors import CurvefmError
+from curvefm.errors import InternalError
 from curvefm.fmap import DEFAULT_K
 from curvefm.geometry import Mesh, build_mesh
 from curvefm.service.deps import Services, submit_basis
@@ -121,6 +121,6 @@ def _wait(services: Services, job_id: str, what: str, stop: threading.Event) -> 
         if info.state == "finished":
             return True
         if info.state in ("failed", "canceled"):
-            raise CurvefmError(f"demo: {what} {info.state}: {info.error or info.message}")
+            raise InternalError(f"demo: {what} {info.state}: {info.error.message if info.error else info.message}")
         stop.wait(0.5)
     return False

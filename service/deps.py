@@ -8,15 +8,13 @@ from typing import Annotated
 
 from fastapi import Depends, Request
 
-from curvefm.errors import CurvefmError
 from curvefm.service.errors import require_plugin
 from curvefm.service.models import JobInfoModel
 from curvefm.service.settings import Settings
 from curvefm.session import LiveSessions, SessionEditor, SessionStore
 from curvefm.store import Store, params_key
-from curvefm.workers.queue import JobInfo, JobQueue, make_queue
-
-REAPER_INTERVAL_S = 5.0
+from curvefm.workers.factory import make_queue
+from curvefm.workers.interface import JobInfo, JobQueue
 
 
 @dataclass
@@ -42,16 +40,7 @@ def start_services(settings: Settings) -> Services:
     records = SessionStore(store.root)
     live = LiveSessions(store, records)
     sessions = SessionEditor(records, live, find_plugin=require_plugin)  # its errors list the installed plugins
-    services = Services(settings, store, queue, records, live, sessions)
-    if settings.redis_url:
-        from curvefm.workers.rq_queue import start_reaper
-
-        try:
-            queue.ping()
-        except Exception as exc:
-            raise CurvefmError(f"cannot reach Redis at {settings.redis_url}: {exc}") from None
-        services.stop_events.append(start_reaper(queue.connection, list(queue.queues.values()), REAPER_INTERVAL_S))
-    return services
+    return Services(settings, store, queue, records, live, sessions)
 
 
 def get_services(request: Request) -> Services:

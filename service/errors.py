@@ -1,19 +1,39 @@
-"""Errors a request can cause, and their JSON 4xx bodies: ``{"error": kind, "detail": message, ...}``."""
+"""Errors as HTTP answers: the one place where error classes become statuses, and their JSON bodies.
+
+A body is ``{"error": code, "detail": message, ...}`` (:class:`curvefm.service.models.ErrorBody`). An internal
+error answers 500 with an ``error_id`` and one readable line; its traceback goes to the server log under that id.
+"""
 
 from __future__ import annotations
+
+import logging
+import uuid
 
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from starlette.exceptions import HTTPException
 
 from curvefm import registry
-from curvefm.errors import CurvefmError
+from curvefm.errors import Conflict, CurvefmError, InternalError, InvalidInput, NotFound, ResourceLimit
 from curvefm.registry import Plugin
+from curvefm.service.models import ErrorBody
 
-STATUS = {"invalid": 400, "not_found": 404, "conflict": 409, "too_large": 413}
+log = logging.getLogger("curvefm.service")
+
+STATUS: dict[type[CurvefmError], int] = {
+    CurvefmError: 400,  # raised as such (e.g. by a third-party plugin): a user error
+    InvalidInput: 400,
+    NotFound: 404,
+    Conflict: 409,
+    ResourceLimit: 413,
+    InternalError: 500,
+}
+CODE = {status: cls.code for cls, status in STATUS.items()}
+"""The ``error`` code of a status (for the framework's own errors: unknown paths, methods not allowed)."""
 
 
-class UnknownPlugin(CurvefmError):
+class UnknownPlugin(InvalidInput):
     def __init__(self, kind: str, name: str):
         self.available = registry.names(kind)
         super().__init__(f"unknown {kind} '{name}'; installed {kind}s: {', '.join(self.available) or 'none'}")
@@ -30,20 +50,51 @@ def require_plugin(kind: str, name: str) -> Plugin:
         raise UnknownPlugin(kind, name) from None
 
 
-def error_response(exc: CurvefmError) -> JSONResponse:
-    body = {"error": exc.kind, "detail": exc.message}
+def status_of(exc: CurvefmError) -> int:
+    return next(STATUS[cls] for cls in type(exc).__mro__ if cls in STATUS)
+
+
+def error_responses(*statuses: int) -> dict[int | str, dict]:
+    """OpenAPI ``responses`` for these error statuses (the app declares 500, which any route can answer)."""
+    return {status: {"model": ErrorBody} for status in statuses}
+
+
+def error_response(exc: CurvefmError, detail: str | None = None) -> JSONResponse:
+    """The JSON answer to a user's error (4xx), its message or ``detail``; internal errors go through
+    :func:`internal_error_response`."""
+    body = {"error": exc.code, "detail": detail or exc.message}
     if isinstance(exc, UnknownPlugin):
         body["available"] = exc.available
-    return JSONResponse(body, status_code=STATUS.get(exc.kind, 400))
+    return JSONResponse(body, status_code=status_of(exc))
+
+
+def internal_error_response(request: Request, exc: Exception) -> JSONResponse:
+    """500 with an error id; the traceback is logged under that id, never sent."""
+    error_id = uuid.uuid4().hex[:12]
+    log.error("internal error %s on %s %s", error_id, request.method, request.url.path, exc_info=exc)
+    line = exc.message if isinstance(exc, InternalError) else "the server failed to handle this request"
+    detail = f"{line} (error id {error_id}; the server log has the details)"
+    return JSONResponse({"error": InternalError.code, "detail": detail, "error_id": error_id}, status_code=500)
 
 
 def install_error_handlers(app: FastAPI) -> None:
     @app.exception_handler(CurvefmError)
     async def curvefm_error(request: Request, exc: CurvefmError) -> JSONResponse:
+        if status_of(exc) >= 500:
+            return internal_error_response(request, exc)
         return error_response(exc)
+
+    @app.exception_handler(Exception)
+    async def unexpected_error(request: Request, exc: Exception) -> JSONResponse:
+        return internal_error_response(request, exc)
+
+    @app.exception_handler(HTTPException)
+    async def http_error(request: Request, exc: HTTPException) -> JSONResponse:
+        body = {"error": CODE.get(exc.status_code, InvalidInput.code), "detail": str(exc.detail)}
+        return JSONResponse(body, status_code=exc.status_code, headers=exc.headers)
 
     @app.exception_handler(RequestValidationError)
     async def validation_error(request: Request, exc: RequestValidationError) -> JSONResponse:
         fields = [{"field": ".".join(str(part) for part in e["loc"]), "problem": e["msg"]} for e in exc.errors()]
         detail = "; ".join(f"{f['field']}: {f['problem']}" for f in fields)
-        return JSONResponse({"error": "invalid", "detail": detail, "fields": fields}, status_code=422)
+        return JSONResponse({"error": InvalidInput.code, "detail": detail, "fields": fields}, status_code=422)

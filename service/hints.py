@@ -13,17 +13,15 @@ from curvefm.service.errors import error_response
 from curvefm.session import BasisNeed, MissingBasis, UnknownSession, UnknownShape
 
 
-def with_hint(error: CurvefmError) -> CurvefmError:
-    """``error`` with what to request next; other errors unchanged."""
+def with_hint(error: CurvefmError) -> str:
+    """``error``'s message with what to request next (other errors' messages unchanged)."""
     if isinstance(error, MissingBasis):
-        message = "; ".join(f"{need.describe()}; {basis_request(need)}" for need in error.needs)
-    elif isinstance(error, UnknownShape):
-        message = f"{error.message}; upload it with POST /shapes"
-    elif isinstance(error, UnknownSession):
-        message = f"{error.message}; GET /sessions lists them"
-    else:
-        return error
-    return CurvefmError(message, kind=error.kind)
+        return "; ".join(f"{need.describe()}; {basis_request(need)}" for need in error.needs)
+    if isinstance(error, UnknownShape):
+        return f"{error.message}; upload it with POST /shapes"
+    if isinstance(error, UnknownSession):
+        return f"{error.message}; GET /sessions lists them"
+    return error.message
 
 
 def basis_request(need: BasisNeed) -> str:
@@ -33,7 +31,7 @@ def basis_request(need: BasisNeed) -> str:
 
 def install_hints(app: FastAPI) -> None:
     async def hinted(request: Request, exc: CurvefmError) -> JSONResponse:
-        return error_response(with_hint(exc))
+        return error_response(exc, with_hint(exc))
 
     for error_type in (MissingBasis, UnknownShape, UnknownSession):
         app.add_exception_handler(error_type, hinted)

@@ -8,20 +8,24 @@ mesh payload translates). The session models the API shares with the core (``Ses
 
 from __future__ import annotations
 
-from typing import Literal
-
 from pydantic import BaseModel, ConfigDict, Field
 
 from curvefm.fmap import DEFAULT_K
 from curvefm.session import CurveRecord, MapSummary
+from curvefm.workers.interface import JobState
 
-JobStateName = Literal["queued", "started", "finished", "failed", "canceled"]
+
+class FieldProblem(BaseModel):
+    field: str = Field(description="where in the request, e.g. body.k")
+    problem: str
 
 
 class ErrorBody(BaseModel):
-    error: str = Field(description="invalid, not_found, conflict or too_large")
+    error: str = Field(description="invalid, not_found, conflict, too_large or internal")
     detail: str = Field(description="what was wrong and what to do")
     available: list[str] | None = Field(None, description="installed plugins of the kind asked for")
+    fields: list[FieldProblem] | None = Field(None, description="each field that failed validation (422)")
+    error_id: str | None = Field(None, description="internal errors (500): the id the server log files it under")
 
 
 class BasisInfo(BaseModel):
@@ -48,16 +52,20 @@ class BasisRequest(BaseModel):
     params: dict = Field(default_factory=dict, description="the basis plugin's parameters (GET /plugins)")
 
 
+class JobError(BaseModel):
+    kind: str = Field(description="invalid, not_found, conflict, too_large, internal or worker_lost")
+    message: str = Field(description="one readable line")
+
+
 class JobInfoModel(BaseModel):
     id: str
     kind: str = Field(description="basis or refine")
-    state: JobStateName
+    state: JobState
     progress: float = Field(description="0..1")
     message: str
     result: dict | None = None
     links: dict[str, str] = Field(default_factory=dict, description="where to fetch what the job produced")
-    error: str | None = Field(None, description="one readable line when the job failed")
-    traceback: str | None = None
+    error: JobError | None = Field(None, description="why the job failed (when it failed)")
     worker: str | None = None
     created_at: float | None = None
     started_at: float | None = None

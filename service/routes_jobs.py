@@ -8,18 +8,19 @@ from fastapi import APIRouter
 from fastapi.responses import FileResponse
 
 from curvefm import registry
-from curvefm.errors import CurvefmError
+from curvefm.errors import NotFound
 from curvefm.service.deps import ServicesDep, job_model
-from curvefm.service.models import ErrorBody, JobInfoModel
+from curvefm.service.errors import error_responses
+from curvefm.service.models import JobInfoModel
 
 router = APIRouter()
-ERRORS = {status: {"model": ErrorBody} for status in (404, 409)}
+ERRORS = error_responses(404, 409, 422)
 _SAFE_NAME = re.compile(r"^[A-Za-z0-9_-][A-Za-z0-9_.-]{0,127}$")
 
 
 @router.get("/jobs/{job_id}", response_model=JobInfoModel, responses=ERRORS, tags=["jobs"])
 def get_job(job_id: str, services: ServicesDep) -> JobInfoModel:
-    """State, progress (0..1 with a message), links to results, or a readable error (with the traceback)."""
+    """State, progress (0..1 with a message), links to results, or why the job failed (a kind and one line)."""
     return job_model(services.queue.get(job_id))
 
 
@@ -29,12 +30,12 @@ def cancel_job(job_id: str, services: ServicesDep) -> JobInfoModel:
     return job_model(services.queue.cancel(job_id))
 
 
-@router.get("/jobs/{job_id}/files/{name}", responses={404: {"model": ErrorBody}}, tags=["jobs"])
+@router.get("/jobs/{job_id}/files/{name}", responses=error_responses(404, 422), tags=["jobs"])
 def get_job_file(job_id: str, name: str, services: ServicesDep) -> FileResponse:
     """A file a refinement job wrote (listed in its ``links``)."""
     path = services.store.root / "results" / job_id / name
     if not (_SAFE_NAME.match(job_id) and _SAFE_NAME.match(name) and path.is_file()):
-        raise CurvefmError(f"job {job_id} has no result file '{name}'", kind="not_found")
+        raise NotFound(f"job {job_id} has no result file '{name}'")
     return FileResponse(path, filename=name)
 
 

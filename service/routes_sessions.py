@@ -6,15 +6,15 @@ from typing import Annotated
 
 from fastapi import APIRouter, Query, Response
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import Conflict, InvalidInput
 from curvefm.service.deps import ServicesDep, job_model
-from curvefm.service.errors import require_plugin
-from curvefm.service.models import CurveEdit, ErrorBody, JobInfoModel, MapResponse, RefineRequest, SessionSummary
+from curvefm.service.errors import error_responses, require_plugin
+from curvefm.service.models import CurveEdit, JobInfoModel, MapResponse, RefineRequest, SessionSummary
 from curvefm.session import CurveSpec, SessionCreate, SessionRecord, TransferFunction
 from curvefm.spectral import check_k
 
 router = APIRouter(tags=["sessions"])
-ERRORS = {status: {"model": ErrorBody} for status in (400, 404, 409)}
+ERRORS = error_responses(400, 404, 409, 422)
 
 
 @router.post("/sessions", status_code=201, response_model=SessionRecord, responses=ERRORS)
@@ -103,7 +103,7 @@ def refine(session_id: str, body: RefineRequest, services: ServicesDep) -> JobIn
         check_k(size, smallest, f"the smaller shape of session {session_id}")
     params = parsed.model_dump()
     if not record.curves:
-        raise CurvefmError(f"session {session_id} has no curves yet; add at least one before refining", kind="conflict")
+        raise Conflict(f"session {session_id} has no curves yet; add at least one before refining")
     kwargs = {
         "data_dir": str(services.store.root),
         "session": record.model_dump(mode="json"),
@@ -119,4 +119,4 @@ def _parse_ids(text: str | None) -> list[int] | None:
     try:
         return [int(part) for part in text.split(",") if part.strip()]
     except ValueError:
-        raise CurvefmError(f"vertices must be comma-separated integers, got '{text}'") from None
+        raise InvalidInput(f"vertices must be comma-separated integers, got '{text}'") from None

@@ -11,15 +11,15 @@ from typing import Annotated, BinaryIO, Literal
 import numpy as np
 from fastapi import APIRouter, File, Form, Response, UploadFile
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import CurvefmError, InvalidInput, ResourceLimit
 from curvefm.geometry import SUPPORTED_FORMATS, Mesh, load_mesh, texture_coordinates
 from curvefm.service.deps import Services, ServicesDep, job_model, submit_basis
-from curvefm.service.errors import require_plugin
-from curvefm.service.models import BasisInfo, BasisRequest, ErrorBody, JobInfoModel, ShapeInfo
+from curvefm.service.errors import error_responses, require_plugin
+from curvefm.service.models import BasisInfo, BasisRequest, JobInfoModel, ShapeInfo
 from curvefm.spectral import check_k
 
 router = APIRouter(tags=["shapes"])
-ERRORS = {status: {"model": ErrorBody} for status in (400, 404, 409, 413)}
+ERRORS = error_responses(400, 404, 409, 413, 422)
 COPY_CHUNK = 1 << 20
 MESH_FORMAT = "curvefm-mesh-1"
 
@@ -36,7 +36,7 @@ def upload_shape(
     filename = file.filename or ""
     suffix = Path(filename).suffix.lower()
     if suffix not in SUPPORTED_FORMATS:
-        raise CurvefmError(
+        raise InvalidInput(
             f"unsupported mesh format '{suffix or '(no suffix)'}' of '{filename}'; supported: "
             f"{', '.join(SUPPORTED_FORMATS)}"
         )
@@ -141,9 +141,8 @@ def _copy_limited(source: BinaryIO, destination: Path, limit: int) -> None:
 
 
 def too_large(limit: int) -> CurvefmError:
-    return CurvefmError(
+    return ResourceLimit(
         f"upload is larger than the limit of {limit} bytes (set CURVEFM_MAX_UPLOAD_BYTES to change it)",
-        kind="too_large",
     )
 
 

@@ -8,6 +8,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import NoReturn
 
 import httpx
 import pytest
@@ -16,6 +17,18 @@ from curvefm.runtime import limit_blas_threads
 
 REPO = Path(__file__).resolve().parents[1]
 limit_blas_threads()  # as the CLI does: the solver threads, not BLAS, use the cores
+
+
+def in_ci() -> bool:
+    return os.environ.get("CI", "").lower() not in ("", "0", "false")
+
+
+def unavailable(reason: str) -> NoReturn:
+    """End a test that lacks something it needs (the shared data, Redis, Chromium, a program): a skip on a
+    developer's machine, a failure with the reason under CI (``CI`` set), where nothing may be missing."""
+    if in_ci():
+        pytest.fail(f"{reason} [CI is set: a missing requirement fails the test]", pytrace=False)
+    pytest.skip(reason)
 
 
 def shared_data_path() -> Path:
@@ -27,7 +40,7 @@ def shared_data() -> Path:
     """The real meshes with ground truth (../shared/data or $CURVEFM_SHARED_DATA)."""
     path = shared_data_path()
     if not path.is_dir():
-        pytest.skip(f"shared data folder {path} is absent (set CURVEFM_SHARED_DATA)")
+        unavailable(f"shared data folder {path} is absent (set CURVEFM_SHARED_DATA)")
     return path
 
 
@@ -46,7 +59,7 @@ def redis_url() -> str:
     try:
         redis.Redis.from_url(REDIS_URL, socket_connect_timeout=2).ping()
     except redis.RedisError as exc:
-        pytest.skip(f"no Redis at {REDIS_URL} ({exc}); .ci/run starts one")
+        unavailable(f"no Redis at {REDIS_URL} ({exc}); scripts/test.sh starts one")
     return REDIS_URL
 
 

@@ -24,7 +24,7 @@ from curvefm.pointwise import closest_points
 from curvefm.progress import Cancelled, no_progress
 from curvefm.session import CurveRecord, CurveSpec, SessionRecord
 from curvefm.store import Store
-from curvefm.workers.queue import EmbeddedQueue
+from curvefm.workers.embedded import EmbeddedQueue
 
 FAUST = ("faust/tr_reg_000.off", "faust/tr_reg_011.off")
 CAT_LION = ("nonisometric/pyfm_cat_lion/cat-00.off", "nonisometric/pyfm_cat_lion/lion-00.off")

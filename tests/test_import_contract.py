@@ -6,7 +6,7 @@ Import names differ from folder names (``service/`` installs as ``curvefm.servic
 * the core (``curvefm/``) imports nothing above it; only the CLI, the entry point, starts the service and workers
 * plugins import the core's public API (a package such as ``curvefm.fmap``, not its modules) and other plugins
 * workers import the core and plugins, never the service
-* the service imports the core, plugins and, of the workers, only the queue interface
+* the service imports the core, plugins and, of the workers, only the queue interface and the factory of queues
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 from conftest import REPO
 
-QUEUE_INTERFACE = {"curvefm.workers.queue", "curvefm.workers.rq_queue"}
+QUEUE_INTERFACE = {"curvefm.workers.interface", "curvefm.workers.factory"}
 CORE_PACKAGES = {"geometry", "spectral", "fmap", "pointwise", "session", "evaluation"}
 ABOVE_CORE = ("curvefm.plugins", "curvefm.service", "curvefm.workers")
 
@@ -115,4 +115,5 @@ def test_a_core_module_importing_the_service_is_caught():
     assert violations("curvefm.fmap.solver", {"curvefm.service.app"}) == ["curvefm.service.app"]
     assert violations("curvefm.plugins.icp", {"curvefm.fmap.solver"}) == ["curvefm.fmap.solver"]
     assert violations("curvefm.service.deps", {"curvefm.workers.jobs"}) == ["curvefm.workers.jobs"]
+    assert violations("curvefm.service.deps", {"curvefm.workers.rq_queue"}) == ["curvefm.workers.rq_queue"]
     assert violations("curvefm.workers.jobs", {"curvefm.service.models"}) == ["curvefm.service.models"]

@@ -1,4 +1,6 @@
-"""The in-process executor (no Redis): same states as RQ, progress, deduplication, cancelling, failures."""
+"""The in-process executor (no Redis): same states as RQ, progress, deduplication, cancelling.
+
+Failures are tested for both queues in test_queue_failures.py."""
 
 from __future__ import annotations
 
@@ -6,10 +8,11 @@ import time
 
 import pytest
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import Conflict, NotFound
 from curvefm.service.demo import demo_shapes
 from curvefm.store import Store
-from curvefm.workers.queue import EmbeddedQueue, JobInfo
+from curvefm.workers.embedded import EmbeddedQueue
+from curvefm.workers.interface import JobInfo
 
 
 @pytest.fixture
@@ -74,14 +77,10 @@ def test_cancel_queued_and_running_jobs(store, mesh_id, queue):
     assert queue.cancel(running.id).state == "canceled"
 
 
-def test_failures_keep_a_readable_error_and_the_traceback(store, queue):
+def test_unknown_and_ended_jobs_are_typed_errors(store, queue):
+    with pytest.raises(NotFound, match="no job with id 'nope'"):
+        queue.get("nope")
     info = wait(queue, queue.submit("basis", basis_job(store, "feedbeef", 20)).id)
     assert info.state == "failed"
-    assert info.error == "no shape with id 'feedbeef'"
-    assert "Traceback" in info.traceback and "CurvefmError" in info.traceback
-    with pytest.raises(CurvefmError) as error:
+    with pytest.raises(Conflict, match="already failed"):
         queue.cancel(info.id)
-    assert error.value.kind == "conflict"
-    with pytest.raises(CurvefmError) as error:
-        queue.get("nope")
-    assert error.value.kind == "not_found"

@@ -56,8 +56,9 @@ def test_job_of_a_killed_worker_fails_with_a_reason_when_no_retry_is_left(
     final = api.wait_job(running["id"], timeout=60)
 
     assert final["state"] == "failed", final
-    assert "died" in final["error"] and running["worker"] in final["error"]
-    assert "AbandonedJobError" in final["traceback"]
+    assert final["error"]["kind"] == "worker_lost", final
+    assert "died" in final["error"]["message"] and running["worker"] in final["error"]["message"]
+    assert "traceback" not in final
     assert api.client.get(f"/shapes/{shape_id}").json()["bases"] == []
 
 

@@ -6,7 +6,8 @@ import shutil
 import subprocess
 from pathlib import Path
 
-import pytest
+import yaml
+from conftest import unavailable
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -14,14 +15,14 @@ REPO = Path(__file__).resolve().parents[1]
 def test_compose_file_is_valid_and_runs_the_tested_commands(processes):
     binary = shutil.which("docker-compose")
     if binary is None:
-        pytest.skip("docker-compose is not installed (.ci/run installs Debian's)")
+        unavailable("docker-compose is not installed (scripts/setup.sh installs Debian's)")
     result = subprocess.run(
         [binary, "-f", str(REPO / "docker-compose.yml"), "config"], capture_output=True, text=True, cwd=REPO
     )
     assert result.returncode == 0, result.stderr
     assert "WARNING" not in result.stderr, result.stderr
 
-    services = pytest.importorskip("yaml").safe_load(result.stdout)["services"]
+    services = yaml.safe_load(result.stdout)["services"]
     assert services["api"]["command"][:3] == processes.api_command
     assert services["worker"]["command"][:3] == processes.worker_command
     for name in ("api", "worker"):

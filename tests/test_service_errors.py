@@ -1,20 +1,71 @@
-"""Bad input over HTTP: each problem is a 4xx with a JSON body naming it; the data directory is unchanged."""
+"""Errors over HTTP: each problem is a JSON body naming it, with the status of its error class (4xx for the
+user's errors, 500 with an error id for ours); the data directory is unchanged."""
 
 from __future__ import annotations
 
+import os
+import re
 from pathlib import Path
 
 import pytest
 
+from curvefm.service.models import ErrorBody
+
 K = 30
 MAX_UPLOAD = 2_000_000
+FAILING_TRACERS = {  # tracer name -> what it raises: installed as a third-party package would install them
+    "raises-CurvefmError": 'errors.CurvefmError("the tracer refuses these endpoints")',
+    "raises-InvalidInput": 'errors.InvalidInput("the tracer refuses these endpoints")',
+    "raises-NotFound": 'errors.NotFound("the tracer found no such landmark")',
+    "raises-Conflict": 'errors.Conflict("the tracer is busy with this mesh")',
+    "raises-ResourceLimit": 'errors.ResourceLimit("the curve is longer than the tracer allows")',
+    "raises-InternalError": 'errors.InternalError("the tracer\'s solver did not converge")',
+    "raises-KeyError": 'KeyError("a bug in the tracer")',
+}
+
+
+TRACERS_MODULE = """
+from pydantic import BaseModel
+
+from curvefm import errors
+from curvefm.registry import TracerPlugin
+
+
+class NoParams(BaseModel):
+    pass
+
+
+def raising(name, make):
+    def run(mesh, start, end, params):
+        raise make()
+
+    return TracerPlugin(name=name, description="fails on purpose", Params=NoParams, run=run)
+"""
+
+
+def install_failing_tracers(folder: Path) -> Path:
+    """A package on its own path entry whose tracers each raise one error (a stand-in for a numerical failure
+    or a bug deep in the core, which no well-formed request reaches)."""
+    attribute = {name: name.replace("-", "_") for name in FAILING_TRACERS}
+    folder.mkdir()
+    tracers = [f"{attribute[name]} = raising({name!r}, lambda: {error})" for name, error in FAILING_TRACERS.items()]
+    (folder / "failing_tracers.py").write_text(TRACERS_MODULE + "\n".join(tracers) + "\n")
+    info = folder / "failing_tracers-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: failing-tracers\nVersion: 0.1\n")
+    points = [f"{name} = failing_tracers:{attribute[name]}" for name in FAILING_TRACERS]
+    (info / "entry_points.txt").write_text("[curvefm.tracers]\n" + "\n".join(points) + "\n")
+    return folder
 
 
 @pytest.fixture(scope="module")
 def server(module_processes, tmp_path_factory):
-    """An embedded-mode API with the two demo shapes, their bases and an empty session."""
+    """An embedded-mode API with the two demo shapes, their bases, an empty session and the failing tracers."""
     folder = tmp_path_factory.mktemp("errors")
-    api = module_processes.api(folder / "data", env={"CURVEFM_MAX_UPLOAD_BYTES": str(MAX_UPLOAD)})
+    plugins = str(install_failing_tracers(folder / "plugins"))
+    path = os.pathsep.join(filter(None, [plugins, os.environ.get("PYTHONPATH")]))
+    env = {"CURVEFM_MAX_UPLOAD_BYTES": str(MAX_UPLOAD), "PYTHONPATH": path}
+    api = module_processes.api(folder / "data", env=env)
     api.data = folder / "data"
     api.shapes, api.session = api.demo_pair(folder, K)
     return api
@@ -34,6 +85,7 @@ def snapshot(folder: Path) -> dict[str, tuple[int, int]]:
 def expect(response, status: int, kind: str, *words: str) -> dict:
     assert response.status_code == status, response.text
     body = response.json()
+    assert set(body) <= set(ErrorBody.model_fields) and ErrorBody.model_validate(body), body
     assert body["error"] == kind
     for word in words:
         assert word in body["detail"], body
@@ -42,6 +94,19 @@ def expect(response, status: int, kind: str, *words: str) -> dict:
 
 def upload(server, name: str, content: bytes):
     return server.client.post("/shapes", files={"file": (name, content)})
+
+
+def test_every_error_status_is_documented_as_an_error_body(server):
+    documented = {
+        (path, method, status): response["content"]["application/json"]["schema"]
+        for path, operations in server.client.get("/openapi.json").json()["paths"].items()
+        for method, operation in operations.items()
+        for status, response in operation["responses"].items()
+        if int(status) >= 400
+    }
+    assert ("/sessions/{session_id}/curves", "post", "422") in documented
+    assert ("/health", "get", "500") in documented
+    assert {schema["$ref"] for schema in documented.values()} == {"#/components/schemas/ErrorBody"}
 
 
 def test_malformed_and_unsupported_meshes(server):
@@ -71,7 +136,7 @@ def test_upload_over_the_size_limit(server):
     ],
 )
 def test_unknown_ids(server, path):
-    assert server.client.get(path).status_code == 404
+    expect(server.client.get(path), 404, "not_found")
 
 
 def test_unknown_ids_in_edits(server):
@@ -81,6 +146,7 @@ def test_unknown_ids_in_edits(server):
     expect(server.client.put(f"/sessions/{server.session}/curves/c99", json=curve), 404, "not_found", "c99")
     expect(server.client.delete(f"/sessions/{server.session}/curves/c99"), 404, "not_found", "c99")
     expect(server.client.delete("/jobs/nope"), 404, "not_found", "nope")
+    expect(server.client.put("/plugins"), 405, "invalid", "Method Not Allowed")
     body = {"source": "feedbeef", "target": server.shapes[1], "k": K}
     expect(server.client.post("/sessions", json=body), 404, "not_found", "feedbeef", "source")
 
@@ -165,3 +231,47 @@ def test_refine_needs_curves_and_ended_jobs_cannot_be_canceled(server):
     job = server.client.post(f"/shapes/{server.shapes[0]}/bases", json={"k": K}).json()
     assert server.wait_job(job["id"])["state"] == "finished"  # the basis exists: the job ends at once
     expect(server.client.delete(f"/jobs/{job['id']}"), 409, "conflict", "finished")
+
+
+def add_curve_with(server, tracer: str):
+    curve = {"source": [0, 5], "target": [0, 5], "tracer": tracer}
+    return server.client.post(f"/sessions/{server.session}/curves", json=curve)
+
+
+@pytest.mark.parametrize(
+    "error, status, kind",
+    [
+        ("CurvefmError", 400, "invalid"),  # the base class, raised as such by a plugin: the user's error
+        ("InvalidInput", 400, "invalid"),
+        ("NotFound", 404, "not_found"),
+        ("Conflict", 409, "conflict"),
+        ("ResourceLimit", 413, "too_large"),
+    ],
+)
+def test_each_user_error_class_has_its_status(server, error, status, kind):
+    body = expect(add_curve_with(server, f"raises-{error}"), status, kind, "the tracer")
+    assert set(body) == {"error", "detail"}
+
+
+def test_an_internal_error_is_a_500_with_an_id_and_no_traceback(server):
+    response = add_curve_with(server, "raises-InternalError")
+    body = expect(response, 500, "internal", "did not converge", "error id")
+    assert set(body) == {"error", "detail", "error_id"} and body["error_id"] in body["detail"]
+    assert "Traceback" not in response.text and ".py" not in response.text
+    logged = server_log_after(server, body["error_id"])
+    assert "Traceback" in logged and "InternalError: the tracer's solver did not converge" in logged
+
+
+def test_an_unexpected_exception_is_an_internal_error_too(server):
+    response = add_curve_with(server, "raises-KeyError")
+    body = expect(response, 500, "internal", "error id")
+    assert "KeyError" not in response.text and "bug" not in response.text  # the log has it, the answer not
+    assert "KeyError: 'a bug in the tracer'" in server_log_after(server, body["error_id"])
+
+
+def server_log_after(server, error_id: str) -> str:
+    """The server log from the line that names ``error_id`` on."""
+    log = server.log.read_text()
+    found = re.search(rf"^.*internal error {error_id}\b", log, flags=re.MULTILINE)
+    assert found, f"error id {error_id} is not in the server log:\n{log[-3000:]}"
+    return log[found.start() :]

@@ -6,7 +6,7 @@ from pydantic import ValidationError
 from shapes import basis_of, ellipsoid
 
 from curvefm import registry
-from curvefm.errors import CurvefmError
+from curvefm.errors import Conflict, NotFound
 from curvefm.session import (
     CurveSpec,
     LiveSessions,
@@ -109,7 +109,7 @@ def test_missing_things_are_named_without_saying_how_to_get_them(store):
     with pytest.raises(MissingBasis) as missing:
         editor.create(SessionCreate(source=source, target=target, k=K + 5))
     assert [need.role for need in missing.value.needs] == ["source", "target"]
-    assert missing.value.kind == "conflict" and f"k >= {K + 5}" in missing.value.message
+    assert isinstance(missing.value, Conflict) and f"k >= {K + 5}" in missing.value.message
     with pytest.raises(UnknownShape, match="no target shape with id 'feed'"):
         editor.create(SessionCreate(source=source, target="feed", k=K))
     for session_id in ("nope", "../sessions/x"):
@@ -123,12 +123,10 @@ def test_missing_things_are_named_without_saying_how_to_get_them(store):
 def test_an_id_in_use_and_a_curve_that_is_not_there_are_refused(store):
     editor = editor_on(store)
     session = new_session(editor, store)
-    with pytest.raises(CurvefmError, match="already exists") as taken:
+    with pytest.raises(Conflict, match="already exists"):
         editor.records.create(session)
-    assert taken.value.kind == "conflict"
-    with pytest.raises(CurvefmError, match="no curve 'c7'.*none yet") as absent:
+    with pytest.raises(NotFound, match="no curve 'c7'.*none yet"):
         editor.remove_curve(session.id, "c7")
-    assert absent.value.kind == "not_found"
     editor.live.close()
 
 

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 from scipy.sparse.csgraph import dijkstra
@@ -15,7 +13,6 @@ from curvefm.plugins import tracers
 from curvefm.plugins.tracers import ANISOTROPIC, GEODESIC
 from curvefm.session import trace_curve
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 GEODESIC_DEFAULTS = GEODESIC.parse_params({})
 ANISOTROPIC_DEFAULTS = ANISOTROPIC.parse_params({})
 
@@ -52,11 +49,8 @@ def edge_length(mesh, path) -> float:
 
 
 @pytest.fixture(scope="module")
-def wolf():
-    path = DATA / "tosca" / "wolf0.off"
-    if not path.is_file():
-        pytest.skip(f"real data not found at {path} (see the data README)")
-    return load_mesh(path)
+def wolf(shared_data):
+    return load_mesh(shared_data / "tosca" / "wolf0.off")
 
 
 # ----------------------------------------------------------------------------------------------------------

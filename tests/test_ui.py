@@ -13,7 +13,7 @@ from pathlib import Path
 import httpx
 import numpy as np
 import pytest
-from conftest import REPO
+from conftest import REPO, unavailable
 from fastapi import FastAPI
 from ui_helpers import (
     CHROMIUM,
@@ -32,11 +32,6 @@ from curvefm.service.demo import DEMO_SESSION, demo_curves, demo_shapes
 from curvefm.service.ui import mount_ui
 
 ARTIFACTS = REPO / "test-artifacts" / "ui"
-needs_chromium = pytest.mark.skipif(
-    not CHROMIUM.is_file(),
-    reason=f"browser tests need Chromium at {CHROMIUM} (scripts/setup.sh installs Debian's 'chromium'; "
-    "CURVEFM_CHROMIUM points elsewhere)",
-)
 MIN_CHANGED = 0.003  # share of the target canvas's pixels a new curve must visibly recolour
 
 
@@ -56,6 +51,11 @@ def demo(module_processes, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def browser():
+    if not CHROMIUM.is_file():
+        unavailable(
+            f"browser tests need Chromium at {CHROMIUM} (scripts/setup.sh installs Debian's 'chromium'; "
+            "CURVEFM_CHROMIUM points elsewhere)"
+        )
     from playwright.sync_api import sync_playwright
 
     with sync_playwright() as playwright:
@@ -93,7 +93,6 @@ def wait_until(condition, what: str, timeout: float = 30) -> None:
         time.sleep(0.1)
 
 
-@needs_chromium
 def test_click_curves_delete_refine_and_download(page, demo):
     screenshot(page, "01-demo-loaded")
     record = session(demo)
@@ -151,7 +150,6 @@ def test_click_curves_delete_refine_and_download(page, demo):
     np.testing.assert_allclose(C, np.array(live["C_source_to_target"]), rtol=0, atol=1e-12)
 
 
-@needs_chromium
 def test_errors_are_shown_and_the_page_stays_usable(page, demo):
     page.click("#pair-panel summary")  # upload lives in the shapes panel, folded while a session is open
     page.set_input_files("#upload-input", files=[{"name": "notes.txt", "mimeType": "text/plain", "buffer": b"hi"}])
@@ -190,7 +188,7 @@ def failed_job() -> dict:
         "state": "failed",
         "progress": 0.3,
         "message": "failed",
-        "error": "worker exploded",
+        "error": {"kind": "internal", "message": "worker exploded"},
         "links": {},
     }
 

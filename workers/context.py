@@ -2,7 +2,7 @@
 
 Job functions stay plain (importable, plain arguments) and open ``with running_job() as job:``. Under an RQ
 worker this reports progress in ``job.meta`` and keeps a short-lived "alive" key fresh in Redis, so a worker
-killed mid-job is noticed within seconds (see :mod:`curvefm.workers.rq_queue`). The key names the attempt
+killed mid-job is noticed within seconds (see :mod:`curvefm.workers.reaper`). The key names the attempt
 (RQ's execution id), so a stale key of an earlier attempt never vouches for a later one. Under the embedded executor it
 uses the executor's callback (which raises :class:`curvefm.progress.Cancelled` once the job is cancelled).
 Called directly, outside any queue, it reports nowhere.
@@ -93,6 +93,7 @@ def _meta_progress(rq_job) -> Progress:
         rq_job.meta["message"] = message
         rq_job.save_meta()
 
+    rq_job.meta.pop("failure", None)  # recorded by an earlier attempt of a retried job
     report(0.0, "started")
     return report
 

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from curvefm import registry
-from curvefm.errors import CurvefmError
+from curvefm.errors import InvalidInput
 from curvefm.fmap import FunctionalMaps
 from curvefm.matching import MatchResult, convert, pair_with_basis_size, write_outputs
 from curvefm.progress import scaled
@@ -52,7 +52,7 @@ def refine(data_dir: str, session: dict, converter: str = "nearest-neighbor", pa
         record = SessionRecord.model_validate(session)
         plugin, parsed = registry.load("converter", converter, params)
         if not record.curves:
-            raise CurvefmError(f"session {record.id} has no curves; add at least one before refining")
+            raise InvalidInput(f"session {record.id} has no curves; add at least one before refining")
         job.progress(0.0, "loading shapes and bases")
         store = Store(data_dir)
         pair = load_pair(store, record)
@@ -93,3 +93,7 @@ def _publish(final: Path, write) -> list[str]:
         shutil.rmtree(staging, ignore_errors=True)
         raise
     return sorted(p.name for p in final.iterdir())
+
+
+JOB_FUNCTIONS = {"basis": compute_basis, "refine": refine}
+"""The function each job kind runs (``curvefm.workers.interface.JOB_KINDS``)."""

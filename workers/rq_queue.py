@@ -1,55 +1,45 @@
-"""Jobs on RQ (Redis Queue): enqueueing, status, cancelling, and the handling of jobs whose worker died.
+"""Jobs on RQ (Redis Queue): enqueueing, status, cancelling, and why a job failed.
 
 Queue names are ``<prefix>curvefm-basis`` and ``<prefix>curvefm-refine`` (``CURVEFM_QUEUE_PREFIX``, empty by
 default, lets several deployments or test runs share one Redis). A plain ``rq worker`` on those queues runs
-the jobs too.
-
-Dead workers. RQ on its own notices a worker that died mid-job only when the job's registry entry expires
-(a minute or more), then its abandoned-job handling retries the job (if retries are left) or fails it. We
-shorten that: every running attempt keeps ``curvefm:alive:<job id>:<execution id>`` fresh
-(:mod:`curvefm.workers.context`), and :func:`reap_abandoned` (run by every ``curvefm worker`` and by the API)
-expires the registry entry of any started attempt whose key has lapsed, then lets RQ's own handling retry or
-fail the job.
+the jobs too. Every job carries :func:`record_failure` as its RQ failure callback: a failed job's kind and
+message are data in ``job.meta["failure"]``, never read back from traceback text. Jobs whose worker died are
+handled by :mod:`curvefm.workers.reaper`.
 """
 
 from __future__ import annotations
 
 import contextlib
-import logging
 import re
 import threading
-import time
 import uuid
-from collections.abc import Iterable
-from dataclasses import replace
+from dataclasses import asdict, replace
 from datetime import UTC, datetime
 
 from redis import Redis
-from rq import Queue, Retry
+from redis.exceptions import RedisError
+from rq import Callback, Queue, Retry
 from rq.command import send_stop_job_command
-from rq.exceptions import InvalidJobOperation, NoSuchJobError
+from rq.exceptions import AbandonedJobError, InvalidJobOperation, NoSuchJobError
 from rq.job import Job, JobStatus
-from rq.registry import StartedJobRegistry
 
-from curvefm.errors import CurvefmError
-from curvefm.workers.context import alive_key, execution_created_at
-from curvefm.workers.queue import (
+from curvefm.errors import CurvefmError, InvalidInput
+from curvefm.workers.interface import (
     ENDED_STATES,
-    JOB_FUNCTIONS,
+    JOB_KINDS,
+    WORKER_LOST,
+    JobFailure,
     JobInfo,
     JobQueue,
     already_ended,
     check_kind,
     unknown_job,
 )
-
-log = logging.getLogger("curvefm.workers")
+from curvefm.workers.jobs import JOB_FUNCTIONS
+from curvefm.workers.reaper import reap_abandoned, start_reaper
 
 JOB_TIMEOUT_S = 3 * 3600
 KEEP_RESULTS_S = 7 * 24 * 3600
-STARTUP_GRACE_S = 15
-"""An attempt gets this long to set its alive key (fork, setup) before it counts as abandoned."""
-REAP_INTERVAL_S = 2.0
 
 _STATES = {
     JobStatus.CREATED: "queued",
@@ -67,7 +57,7 @@ _JOB_ID = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
 
 def queue_names(prefix: str = "") -> dict[str, str]:
     """RQ queue name per job kind."""
-    return {kind: f"{prefix}curvefm-{kind}" for kind in JOB_FUNCTIONS}
+    return {kind: f"{prefix}curvefm-{kind}" for kind in JOB_KINDS}
 
 
 class RQQueue(JobQueue):
@@ -78,9 +68,18 @@ class RQQueue(JobQueue):
         self.retries = retries
         self.queues = {kind: Queue(name, connection=self.connection) for kind, name in queue_names(prefix).items()}
         self._dedupe_prefix = f"curvefm:{prefix}dedupe:"
+        self._stop_reaper: threading.Event | None = None
 
     def ping(self) -> None:
-        self.connection.ping()
+        """Raise :class:`~curvefm.errors.InvalidInput` (a setting to fix) when Redis does not answer."""
+        try:
+            self.connection.ping()
+        except RedisError as exc:
+            raise InvalidInput(f"cannot reach Redis at {self._url()}: {exc}") from None
+
+    def start_reaper(self, interval_s: float) -> None:
+        """Hand jobs of dead workers to RQ's retry-or-fail handling every ``interval_s``, until :meth:`close`."""
+        self._stop_reaper = start_reaper(self.connection, list(self.queues.values()), interval_s)
 
     def submit(self, kind: str, kwargs: dict, dedupe_key: str | None = None) -> JobInfo:
         check_kind(kind)
@@ -120,6 +119,8 @@ class RQQueue(JobQueue):
         return self._info(self._fetch(job_id))
 
     def close(self) -> None:
+        if self._stop_reaper is not None:
+            self._stop_reaper.set()
         self.connection.close()
 
     # -- helpers ------------------------------------------------------------------------------------------
@@ -134,6 +135,7 @@ class RQQueue(JobQueue):
             retry=Retry(max=self.retries) if self.retries > 0 else None,
             meta={"kind": kind, "progress": 0.0, "message": "queued"},
             description=f"curvefm {kind}",
+            on_failure=Callback(record_failure),
         )
 
     def _fetch(self, job_id: str) -> Job:
@@ -153,7 +155,6 @@ class RQQueue(JobQueue):
     def _info(self, job: Job) -> JobInfo:
         state = _STATES.get(job.get_status(refresh=True), "queued")
         meta = job.get_meta(refresh=True)
-        exc = job.exc_info if state == "failed" else None
         return JobInfo(
             id=job.id,
             kind=meta.get("kind", "unknown"),
@@ -161,97 +162,46 @@ class RQQueue(JobQueue):
             progress=1.0 if state == "finished" else float(meta.get("progress", 0.0)),
             message={"finished": "finished", "canceled": "canceled"}.get(state, meta.get("message", "")),
             result=job.return_value() if state == "finished" else None,
-            error=readable_failure(exc, job) if state == "failed" else None,
-            traceback=exc,
+            error=recorded_failure(meta) if state == "failed" else None,
             worker=job.worker_name or None,
             created_at=_timestamp(job.created_at),
             started_at=_timestamp(job.started_at),
             ended_at=_timestamp(job.ended_at),
         )
 
+    def _url(self) -> str:
+        """Where Redis is, without the password a URL may hold."""
+        kwargs = self.connection.connection_pool.connection_kwargs
+        return f"{kwargs.get('host', '?')}:{kwargs.get('port', '?')}/{kwargs.get('db', 0)}"
 
-def readable_failure(exc: str | None, job: Job) -> str:
-    """One line for people: the exception message, or why the job was abandoned."""
-    if not exc:
-        return "the job failed without a recorded reason"
-    if "AbandonedJobError" in exc:
-        worker = f" ({job.worker_name})" if job.worker_name else ""
-        return (
-            f"the worker running this job{worker} died or lost contact (killed, out of memory, or its "
-            "machine went down) and no retries were left"
-        )
-    last = [line for line in exc.strip().splitlines() if line.strip()][-1]
-    return last.removeprefix("curvefm.errors.CurvefmError: ")
+
+def record_failure(job: Job, connection: Redis, exc_type, exc: BaseException, tb) -> None:
+    """RQ's failure callback, run by the worker when the job raised and by RQ's abandoned-job handling when
+    its worker died: store the failure as data in ``job.meta["failure"]``."""
+    failure = worker_lost(job) if isinstance(exc, AbandonedJobError) else JobFailure.of(exc)
+    job.get_meta(refresh=True)
+    job.meta["failure"] = asdict(failure)
+    job.save_meta()
+
+
+def worker_lost(job: Job) -> JobFailure:
+    worker = f" ({job.worker_name})" if job.worker_name else ""
+    return JobFailure(
+        WORKER_LOST,
+        f"the worker running this job{worker} died or lost contact (killed, out of memory, or its machine went "
+        "down) and no retries were left",
+    )
+
+
+def recorded_failure(meta: dict) -> JobFailure:
+    """The failure :func:`record_failure` stored, or a generic one where the job's process died before any
+    callback could run (e.g. a work horse killed for memory while its worker lived on)."""
+    if "failure" in meta:
+        return JobFailure(**meta["failure"])
+    return JobFailure(WORKER_LOST, "the process running this job ended without saying why (killed, or out of memory)")
 
 
 def _timestamp(moment: datetime | None) -> float | None:
     if moment is None:
         return None
     return (moment if moment.tzinfo else moment.replace(tzinfo=UTC)).timestamp()
-
-
-# ----------------------------------------------------------------------------------------------------------
-# Abandoned jobs
-
-
-def reap_abandoned(connection: Redis, queues: Iterable[Queue]) -> list[str]:
-    """Hand every started job whose alive key lapsed to RQ's abandoned-job handling; return their ids."""
-    reaped = []
-    for queue in queues:
-        lock = f"curvefm:reaper:{queue.name}"
-        if not connection.set(lock, "1", nx=True, ex=30):
-            continue  # another process is reaping this queue right now
-        try:
-            reaped += _reap_queue(connection, queue)
-        finally:
-            connection.delete(lock)
-    return reaped
-
-
-def _reap_queue(connection: Redis, queue: Queue) -> list[str]:
-    registry = StartedJobRegistry(queue=queue)
-    abandoned = [
-        (job_id, execution_id)
-        for job_id, execution_id in registry.get_job_and_execution_ids(cleanup=False)
-        if _is_abandoned(connection, job_id, execution_id)
-    ]
-    for job_id, execution_id in abandoned:
-        _note_abandoned(connection, job_id)
-        connection.zadd(registry.key, {f"{job_id}:{execution_id}": 1}, xx=True)  # expire it now
-    if abandoned:
-        registry.cleanup()
-        log.warning("jobs abandoned by dead workers, retried or failed: %s", [j for j, _ in abandoned])
-    return [job_id for job_id, _ in abandoned]
-
-
-def _is_abandoned(connection: Redis, job_id: str, execution_id: str) -> bool:
-    """This attempt's alive key lapsed, or was never set within the startup grace."""
-    if connection.exists(alive_key(job_id, execution_id)):
-        return False
-    created = execution_created_at(connection, job_id, execution_id)
-    return created is None or time.time() - created > STARTUP_GRACE_S
-
-
-def _note_abandoned(connection: Redis, job_id: str) -> None:
-    job = Job.fetch(job_id, connection=connection)
-    retrying = bool(job.retries_left)
-    job.meta["message"] = f"worker {job.worker_name or '?'} died mid-job; " + (
-        f"queued again ({job.retries_left - 1} retries left after this one)" if retrying else "no retries left"
-    )
-    job.meta["progress"] = 0.0
-    job.save_meta()
-
-
-def start_reaper(connection: Redis, queues: list[Queue], interval_s: float = REAP_INTERVAL_S) -> threading.Event:
-    """Run :func:`reap_abandoned` every ``interval_s`` in a daemon thread; set the returned event to stop."""
-    stop = threading.Event()
-
-    def loop() -> None:
-        while not stop.wait(interval_s):
-            try:
-                reap_abandoned(connection, queues)
-            except Exception:  # a Redis hiccup must not end the loop
-                log.exception("reaping abandoned jobs failed; trying again in %.0f s", interval_s)
-
-    threading.Thread(target=loop, name="curvefm-reaper", daemon=True).start()
-    return stop

@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 from collections.abc import Sequence
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import InvalidInput
 
 
 def worker_main(
@@ -25,11 +25,12 @@ def worker_main(
     from rq import Queue, Worker
 
     from curvefm.workers import jobs  # noqa: F401  (imported here so work horses inherit it)
-    from curvefm.workers.rq_queue import queue_names, start_reaper
+    from curvefm.workers.reaper import start_reaper
+    from curvefm.workers.rq_queue import queue_names
 
     url = redis_url or os.environ.get("CURVEFM_REDIS_URL")
     if not url:
-        raise CurvefmError("a worker needs Redis: pass --redis-url or set CURVEFM_REDIS_URL")
+        raise InvalidInput("a worker needs Redis: pass --redis-url or set CURVEFM_REDIS_URL")
     connection = Redis.from_url(url)
     names = list(queues) if queues else list(queue_names(os.environ.get("CURVEFM_QUEUE_PREFIX", "")).values())
     rq_queues = [Queue(queue_name, connection=connection) for queue_name in names]

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import InvalidInput, NotFound
 from curvefm.geometry import Mesh, load_mesh
 
 # ----------------------------------------------------------------------------------------------------------
@@ -43,10 +43,9 @@ def shared_data_dir() -> Path:
     env = os.environ.get("CURVEFM_SHARED_DATA")
     path = Path(env) if env else Path(__file__).resolve().parents[3] / "shared" / "data"
     if not path.is_dir():
-        raise CurvefmError(
+        raise NotFound(
             f"shared data folder not found at {path}: set CURVEFM_SHARED_DATA to the folder with the "
             "benchmark meshes (faust/, tosca/, ...) or put it at ../shared/data next to the project checkout",
-            kind="not_found",
         )
     return path
 
@@ -54,18 +53,18 @@ def shared_data_dir() -> Path:
 def _read_int_column(path: Path, column: int = 0, what: str = "ids") -> np.ndarray:
     path = Path(path)
     if not path.is_file():
-        raise CurvefmError(f"ground-truth file not found: {path}", kind="not_found")
+        raise NotFound(f"ground-truth file not found: {path}")
     try:
         data = np.loadtxt(path, ndmin=2)
     except ValueError as exc:
-        raise CurvefmError(f"{path.name} is not a table of numbers ({exc})") from None
+        raise InvalidInput(f"{path.name} is not a table of numbers ({exc})") from None
     if data.shape[1] <= column:
-        raise CurvefmError(
+        raise InvalidInput(
             f"{path.name} has {data.shape[1]} columns; expected at least {column + 1} ({what})"
         )
     values = data[:, column]
     if not np.all(values == np.round(values)):
-        raise CurvefmError(f"{path.name}: {what} must be integers")
+        raise InvalidInput(f"{path.name}: {what} must be integers")
     return values.astype(np.int64)
 
 
@@ -73,7 +72,7 @@ def read_vts(path) -> np.ndarray:
     """Read a ``.vts`` correspondence file (1-based vertex ids, first column) as 0-based file ids."""
     ids = _read_int_column(path, 0, "1-based vertex ids") - 1
     if ids.size and ids.min() < 0:
-        raise CurvefmError(f"{Path(path).name} contains id 0 or a negative id; .vts files are 1-based")
+        raise InvalidInput(f"{Path(path).name} contains id 0 or a negative id; .vts files are 1-based")
     return ids
 
 
@@ -85,7 +84,7 @@ def read_pid(path) -> np.ndarray:
 def identity_truth(mesh_X: Mesh, mesh_Y: Mesh) -> GroundTruth:
     """Vertex i of the X file <-> vertex i of the Y file (same vertex count and ordering)."""
     if mesh_X.n_file_vertices != mesh_Y.n_file_vertices:
-        raise CurvefmError(
+        raise InvalidInput(
             f"identity ground truth needs equal vertex counts, but '{mesh_X.name}' has "
             f"{mesh_X.n_file_vertices} and '{mesh_Y.name}' has {mesh_Y.n_file_vertices} vertices"
         )
@@ -99,7 +98,7 @@ def file_pairs_truth(
     """Ground truth from 0-based *file* ids (row r <-> row r), translated to internal ids."""
     fx, fy = np.asarray(file_ids_X).reshape(-1), np.asarray(file_ids_Y).reshape(-1)
     if fx.size != fy.size:
-        raise CurvefmError(
+        raise InvalidInput(
             f"ground truth rows differ: {fx.size} for '{mesh_X.name}', {fy.size} for '{mesh_Y.name}'"
         )
     return GroundTruth(
@@ -138,13 +137,13 @@ def tosca_landmark_truth(path_X, path_Y, mesh_X: Mesh, mesh_Y: Mesh) -> GroundTr
     ly = read_pid(py.parent / "Corrs" / f"{cy}.pid")
     _check_tosca_compatible(cx, cy)
     if lx.size != ly.size:
-        raise CurvefmError(f"TOSCA landmark files disagree: {cx}.pid has {lx.size} rows, {cy}.pid {ly.size}")
+        raise InvalidInput(f"TOSCA landmark files disagree: {cx}.pid has {lx.size} rows, {cy}.pid {ly.size}")
     return file_pairs_truth(mesh_X, mesh_Y, lx, ly, "tosca-landmarks", False)
 
 
 def _check_tosca_compatible(cx: str, cy: str) -> None:
     if cx not in _TOSCA_GROUP or cy not in _TOSCA_GROUP or _TOSCA_GROUP[cx] != _TOSCA_GROUP[cy]:
-        raise CurvefmError(
+        raise InvalidInput(
             f"no landmark ground truth between TOSCA classes '{cx}' and '{cy}': landmarks match only within "
             "animals (cat, dog, horse, wolf), humans (david, michael, victoria, gorilla) or centaur"
         )
@@ -172,7 +171,7 @@ def cat_lion_truth(path_X, path_Y, mesh_X: Mesh, mesh_Y: Mesh, *, dense: bool = 
     folder = px.parent
     roles = {px.stem.split("-")[0]: "X", py.stem.split("-")[0]: "Y"}
     if set(roles) != {"cat", "lion"}:
-        raise CurvefmError(
+        raise InvalidInput(
             f"cat/lion ground truth needs one cat and one lion mesh, got {px.name} and {py.name}"
         )
     if dense:
@@ -219,7 +218,7 @@ def ground_truth_for(
     px, py = Path(path_X), Path(path_Y)
     for p in (px, py):
         if not p.is_file():
-            raise CurvefmError(f"mesh file not found: {p}", kind="not_found")
+            raise NotFound(f"mesh file not found: {p}")
     reader = _truth_reader(px, py, dense)  # decided (and refused) from the paths, before loading meshes
     mesh_X = mesh_X if mesh_X is not None else load_mesh(px)
     mesh_Y = mesh_Y if mesh_Y is not None else load_mesh(py)
@@ -245,7 +244,7 @@ def _truth_reader(px: Path, py: Path, dense: bool):
         return lambda mx, my: cat_lion_truth(px, py, mx, my, dense=dense)
     if fx == fy == "ogre" and {px.stem, py.stem} <= {"bs_rest", "bs_smile"}:
         return identity_truth
-    raise CurvefmError(
+    raise InvalidInput(
         f"no known ground truth between {px} and {py}: supported pairs are faust/*, faust_5k_bcicp/* (with "
         "each other or with faust/), tosca/* (same class, or compatible classes via landmarks), "
         "pyfm_cat_lion cat <-> lion and ogre bs_rest <-> bs_smile, as laid out in the shared data folder"

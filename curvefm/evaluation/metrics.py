@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import InvalidInput
 from curvefm.geometry import Mesh, checked_ids, geodesic_diameter, pair_geodesic_distances
 
 # Radii of the cumulative error curve, as fractions of the target's geodesic diameter.
@@ -60,9 +60,9 @@ class ErrorSummary:
         """Summarise raw geodesic errors (in the target's units)."""
         d = np.asarray(distances, dtype=np.float64).reshape(-1)
         if d.size == 0:
-            raise CurvefmError("no correspondences to evaluate: the ground truth is empty")
+            raise InvalidInput("no correspondences to evaluate: the ground truth is empty")
         if not diameter > 0 or not area > 0:
-            raise CurvefmError("cannot normalise errors: the target mesh has zero diameter or area")
+            raise InvalidInput("cannot normalise errors: the target mesh has zero diameter or area")
         by_diam = d / diameter
         sqrt_area = float(np.sqrt(area))
         curve = (by_diam[None, :] <= CURVE_RADII[:, None] + 1e-12).mean(axis=1)
@@ -111,12 +111,12 @@ def _truth_arrays(truth) -> tuple[np.ndarray, np.ndarray]:
     try:
         ids_x, ids_y = truth
     except (TypeError, ValueError):
-        raise CurvefmError(
+        raise InvalidInput(
             "ground truth must be a pair (ids_X, ids_Y) of equal-length id arrays or an (m, 2) array"
         ) from None
     ids_x, ids_y = np.asarray(ids_x).reshape(-1), np.asarray(ids_y).reshape(-1)
     if ids_x.shape != ids_y.shape:
-        raise CurvefmError(f"ground truth sides differ in length: {ids_x.size} ids on X, {ids_y.size} on Y")
+        raise InvalidInput(f"ground truth sides differ in length: {ids_x.size} ids on X, {ids_y.size} on Y")
     return ids_x, ids_y
 
 
@@ -128,7 +128,7 @@ def map_geodesic_errors(p2p_XY, truth, mesh_Y: Mesh, *, diagonals: bool = True) 
     """
     p2p = np.asarray(p2p_XY)
     if p2p.ndim != 1:
-        raise CurvefmError(
+        raise InvalidInput(
             f"a pointwise map must be a 1-D array (one Y vertex per X vertex), got shape {p2p.shape}"
         )
     ids_x, ids_y = _truth_arrays(truth)

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import InvalidInput
 from curvefm.evaluation.ground_truth import GroundTruth, ground_truth_for
 from curvefm.evaluation.metrics import evaluate_map
 from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K
@@ -31,7 +31,7 @@ def ground_truth_curves(
     partner = dict(zip(truth.ids_X.tolist(), truth.ids_Y.tolist(), strict=True))
     known = np.fromiter(partner, dtype=np.int64)
     if len(known) < 2 * n_curves:
-        raise CurvefmError(f"{len(known)} known correspondences cannot give {n_curves} curves")
+        raise InvalidInput(f"{len(known)} known correspondences cannot give {n_curves} curves")
     endpoints = []
     for vertex in farthest_point_sampling(mesh_M, 2 * n_curves, seed_vertex):
         if vertex not in partner:  # sparse truth: snap to the nearest vertex that has a partner
@@ -76,7 +76,7 @@ class CurvePool:
     def endpoints(self, count: int, seed: int) -> list[tuple[int, int]]:
         """``count`` distinct candidate pairs (source vertex ids), the same for the same seed."""
         if count > self.max_curves:
-            raise CurvefmError(f"{len(self.candidates)} candidate endpoints cannot give {count} distinct curves")
+            raise InvalidInput(f"{len(self.candidates)} candidate endpoints cannot give {count} distinct curves")
         rng = np.random.default_rng(seed)
         chosen: dict[tuple[int, int], None] = {}
         while len(chosen) < count:
@@ -87,7 +87,7 @@ class CurvePool:
     def curves(self, count: int, seed: int, exact: bool) -> list[tuple[np.ndarray, np.ndarray]]:
         """Corresponding ``(path_M, path_N)`` pairs: traced target curves, or exact ones (dense truth only)."""
         if exact and not self.truth.dense:
-            raise CurvefmError(f"exact curves need a dense ground truth; '{self.truth.kind}' is sparse")
+            raise InvalidInput(f"exact curves need a dense ground truth; '{self.truth.kind}' is sparse")
         out = []
         for a, b in self.endpoints(count, seed):
             path_M = shortest_path(self.mesh_M.edge_graph, a, b)
@@ -108,7 +108,7 @@ def carried_path(mesh_N: Mesh, path_M: np.ndarray, partner: dict[int, int]) -> n
     images = [partner[int(v)] for v in path_M if int(v) in partner]
     images = [v for i, v in enumerate(images) if i == 0 or v != images[i - 1]]
     if len(images) < 2:
-        raise CurvefmError("the ground truth maps the whole curve to a single vertex")
+        raise InvalidInput("the ground truth maps the whole curve to a single vertex")
     images = np.array(images, dtype=np.int64)
     adjacent = np.asarray(mesh_N.edge_graph[images[:-1], images[1:]]).ravel() > 0
     path = [images[:1]]

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import InternalError, InvalidInput
 from curvefm.fmap.column_solve import solve_columns
 from curvefm.spectral import Basis
 
@@ -86,12 +86,12 @@ def lbfgs(energy, C0: np.ndarray, max_iter: int, tol: float = 1e-10) -> tuple[np
         options={"maxiter": int(max_iter), "gtol": tol, "ftol": 1e-15, "maxcor": 20},
     )  # fmt: skip
     if not np.all(np.isfinite(result.x)):
-        raise CurvefmError("the quasi-Newton solve diverged (non-finite map)")
+        raise InternalError("the quasi-Newton solve diverged (non-finite map)")
     return result.x.reshape(C0.shape), int(result.nit)
 
 
 def check_method_k(k: int, basis_M: Basis, basis_N: Basis) -> int:
     available = min(basis_M.k, basis_N.k)
     if k > available:
-        raise CurvefmError(f"the method asks for k = {k} but the bases have only {available} functions")
+        raise InvalidInput(f"the method asks for k = {k} but the bases have only {available} functions")
     return k

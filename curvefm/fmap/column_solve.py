@@ -33,7 +33,7 @@ from concurrent.futures import Executor
 import numpy as np
 from scipy.linalg import lapack
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import InternalError, InvalidInput
 
 RIDGE = 1e-10  # relative to the mean diagonal of the systems, see column_ridge
 PARALLEL_MIN_SIZE = 40 * 40  # smaller maps take under a millisecond: handing half to a thread costs more
@@ -153,15 +153,15 @@ def _checked(G, B, lam_rows, lam_cols, alpha):
     lam_cols = np.asarray(lam_cols, dtype=np.float64).ravel()
     k = len(lam_rows)
     if G.shape != (k, k) or B.shape != (k, len(lam_cols)):
-        raise CurvefmError(
+        raise InvalidInput(
             f"column solve: G is {G.shape}, B is {B.shape}, with {k} row and {len(lam_cols)} column "
             "eigenvalues; expected G (k x k) and B (k x n) for k row and n column eigenvalues"
         )
     if not (np.isfinite(alpha) and alpha >= 0):
-        raise CurvefmError(f"column solve: alpha must be a finite number >= 0, got {alpha}")
+        raise InvalidInput(f"column solve: alpha must be a finite number >= 0, got {alpha}")
     for name, array in (("G", G), ("B", B), ("row eigenvalues", lam_rows), ("column eigenvalues", lam_cols)):
         if not np.isfinite(array).all():
-            raise CurvefmError(f"column solve: {name} must be finite (found NaN or infinity)")
+            raise InvalidInput(f"column solve: {name} must be finite (found NaN or infinity)")
     return G, B, lam_rows, lam_cols
 
 
@@ -195,9 +195,9 @@ def _solve_rows(G: np.ndarray, ET: np.ndarray, BT: np.ndarray, CT: np.ndarray, r
 
 def _raise_if_failed(info: int, j: int) -> None:
     if info > 0:
-        raise CurvefmError(
+        raise InternalError(
             f"column solve: system {j} is not positive definite (leading minor {info}); "
             "G must be symmetric positive semi-definite"
         )
     if info < 0:
-        raise RuntimeError(f"LAPACK dposv rejected argument {-info}")
+        raise InternalError(f"column solve: LAPACK dposv rejected argument {-info}")

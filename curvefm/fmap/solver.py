@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import Conflict, InvalidInput, NotFound
 from curvefm.fmap.column_solve import parallel_pays_off, solve_both, solve_columns
 from curvefm.fmap.restriction import DEFAULT_SAMPLES, restrict
 from curvefm.spectral import Basis
@@ -81,7 +81,7 @@ class CurveMapSolver:
         executor: Executor | None = None,
     ):
         if k > min(basis_M.k, basis_N.k):
-            raise CurvefmError(f"k = {k} exceeds the computed bases (M has {basis_M.k}, N has {basis_N.k})")
+            raise InvalidInput(f"k = {k} exceeds the computed bases (M has {basis_M.k}, N has {basis_N.k})")
         self.k, self.alpha, self.samples, self.interactive = k, float(alpha), samples, interactive
         self.vertices_M, self.vertices_N = vertices_M, vertices_N
         self.basis_M, self.basis_N = basis_M.truncated(k), basis_N.truncated(k)
@@ -108,7 +108,7 @@ class CurveMapSolver:
         curves = list(curves)
         ids = [None] * len(curves) if ids is None else list(ids)
         if len(ids) != len(curves):
-            raise CurvefmError(f"{len(curves)} curves but {len(ids)} ids; give one id (or None) per curve")
+            raise InvalidInput(f"{len(curves)} curves but {len(ids)} ids; give one id (or None) per curve")
         terms = [self._term(path_M, path_N, weight) for path_M, path_N, weight in curves]
         chosen = self._claim_ids(ids)
         self.curves.update(zip(chosen, terms, strict=True))
@@ -132,9 +132,9 @@ class CurveMapSolver:
             if curve_id is None:
                 continue
             if not isinstance(curve_id, str) or not curve_id:
-                raise CurvefmError(f"a curve id must be a non-empty string, got {curve_id!r}")
+                raise InvalidInput(f"a curve id must be a non-empty string, got {curve_id!r}")
             if curve_id in taken:
-                raise CurvefmError(f"curve id '{curve_id}' already exists", kind="conflict")
+                raise Conflict(f"curve id '{curve_id}' already exists")
             taken.add(curve_id)
         return [self._automatic_id(taken) if curve_id is None else curve_id for curve_id in requested]
 
@@ -148,11 +148,11 @@ class CurveMapSolver:
 
     def _require(self, curve_id: str) -> None:
         if curve_id not in self.curves:
-            raise CurvefmError(f"no curve '{curve_id}' in this solver", kind="not_found")
+            raise NotFound(f"no curve '{curve_id}' in this solver")
 
     def _term(self, path_M, path_N, weight: float) -> CurveTerm:
         if not weight > 0 or not np.isfinite(weight):
-            raise CurvefmError(f"curve weight must be a positive number, got {weight}")
+            raise InvalidInput(f"curve weight must be a positive number, got {weight}")
         path_M, path_N = np.asarray(path_M, dtype=np.int64), np.asarray(path_N, dtype=np.int64)
         phi = restrict(self.vertices_M, path_M, self.basis_M.evecs, self.samples)
         psi = restrict(self.vertices_N, path_N, self.basis_N.evecs, self.samples)

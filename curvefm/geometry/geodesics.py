@@ -37,7 +37,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import InvalidInput
 from curvefm.geometry.mesh import Mesh
 
 # Bytes of Dijkstra output (chunk of sources x n float64) held at once.
@@ -169,7 +169,7 @@ def pair_geodesic_distances(
     a = checked_ids(a, n, "vertex")
     b = checked_ids(b, n, "vertex")
     if a.shape != b.shape:
-        raise CurvefmError(
+        raise InvalidInput(
             f"pair_geodesic_distances needs equally many ids on both sides, got {a.size} and {b.size}"
         )
     out = np.zeros(a.shape, dtype=np.float64)
@@ -236,9 +236,9 @@ def _cover_pairs(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, 
 def checked_ids(ids, n: int, what: str) -> np.ndarray:
     ids = np.asarray(ids)
     if ids.size and not np.issubdtype(ids.dtype, np.integer):
-        raise CurvefmError(f"{what} ids must be integers, got dtype {ids.dtype}")
+        raise InvalidInput(f"{what} ids must be integers, got dtype {ids.dtype}")
     ids = ids.astype(np.int64).reshape(-1)
     bad = (ids < 0) | (ids >= n)
     if bad.any():
-        raise CurvefmError(f"{what} id {int(ids[bad][0])} is out of range: valid internal ids are 0..{n - 1}")
+        raise InvalidInput(f"{what} id {int(ids[bad][0])} is out of range: valid internal ids are 0..{n - 1}")
     return ids

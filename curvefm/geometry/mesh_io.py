@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import InvalidInput, NotFound
 from curvefm.geometry.formats.gltf import read_gltf
 from curvefm.geometry.formats.obj import read_obj, write_obj
 from curvefm.geometry.formats.off import read_off, write_off
@@ -32,9 +32,9 @@ def load_mesh(path: str | os.PathLike, name: str | None = None) -> Mesh:
     name = name or path.stem
     suffix = path.suffix.lower()
     if not path.is_file():
-        raise CurvefmError(f"mesh file not found: {path}", kind="not_found")
+        raise NotFound(f"mesh file not found: {path}")
     if suffix not in SUPPORTED_FORMATS:
-        raise CurvefmError(
+        raise InvalidInput(
             f"unsupported mesh format '{suffix}' for {path.name}; supported: {', '.join(SUPPORTED_FORMATS)}"
         )
     if suffix == ".obj":
@@ -58,5 +58,5 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike, uv: np.ndarray | None = None)
         write_off(mesh, path)
         return
     if suffix not in OPEN3D_FORMATS:
-        raise CurvefmError(f"cannot write format '{suffix}'; supported: {', '.join(SUPPORTED_FORMATS)}")
+        raise InvalidInput(f"cannot write format '{suffix}'; supported: {', '.join(SUPPORTED_FORMATS)}")
     write_ply_stl(mesh, path)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.sparse.csgraph import dijkstra
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import InvalidInput
 from curvefm.geometry.geodesics import checked_ids, geodesic_graph
 from curvefm.geometry.mesh import Mesh
 
@@ -25,7 +25,7 @@ def farthest_point_sampling(
     """
     n = mesh.n_vertices
     if not 1 <= int(count) <= n:
-        raise CurvefmError(
+        raise InvalidInput(
             f"farthest_point_sampling: count must be between 1 and {n} (the vertex count), got {count}"
         )
     seed = int(checked_ids([seed_vertex], n, "seed vertex")[0])

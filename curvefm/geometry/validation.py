@@ -8,7 +8,7 @@ import os
 import numpy as np
 from scipy.sparse.csgraph import connected_components
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import InvalidInput, ResourceLimit
 from curvefm.geometry.mesh import Mesh, MeshReport, edge_keys
 
 
@@ -66,20 +66,19 @@ def _checked_vertices(vertices, name: str) -> np.ndarray:
     try:
         v = np.asarray(vertices, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise CurvefmError(f"mesh '{name}': vertex coordinates are not numbers ({exc})") from None
+        raise InvalidInput(f"mesh '{name}': vertex coordinates are not numbers ({exc})") from None
     if v.size == 0:
-        raise CurvefmError(f"mesh '{name}' is empty: it has no vertices")
+        raise InvalidInput(f"mesh '{name}' is empty: it has no vertices")
     if v.ndim != 2 or v.shape[1] != 3:
-        raise CurvefmError(f"mesh '{name}': vertices must be an (n, 3) array, got shape {v.shape}")
+        raise InvalidInput(f"mesh '{name}': vertices must be an (n, 3) array, got shape {v.shape}")
     if len(v) > max_vertices():
-        raise CurvefmError(
+        raise ResourceLimit(
             f"mesh '{name}' has {len(v)} vertices, more than the limit of {max_vertices()} "
             "(set CURVEFM_MAX_VERTICES to change it, or decimate the mesh)",
-            kind="too_large",
         )
     bad = ~np.isfinite(v).all(axis=1)
     if bad.any():
-        raise CurvefmError(
+        raise InvalidInput(
             f"mesh '{name}' has {int(bad.sum())} vertices with non-finite coordinates (NaN or inf), "
             f"the first is vertex {int(np.flatnonzero(bad)[0])}"
         )
@@ -97,7 +96,7 @@ def _triangulate(faces, report: MeshReport, name: str) -> np.ndarray:
         for index, poly in enumerate(faces):
             poly = list(poly)
             if len(poly) < 3:
-                raise CurvefmError(
+                raise InvalidInput(
                     f"mesh '{name}': face {index} has {len(poly)} corners; faces need at least 3 "
                     "(lines and points are not surfaces)"
                 )
@@ -106,9 +105,9 @@ def _triangulate(faces, report: MeshReport, name: str) -> np.ndarray:
             tris_list.extend([poly[0], poly[i], poly[i + 1]] for i in range(1, len(poly) - 1))
         tris = np.array(tris_list).reshape(-1, 3)
     if len(tris) == 0:
-        raise CurvefmError(f"mesh '{name}' has no faces; only triangle (or polygon) meshes are supported")
+        raise InvalidInput(f"mesh '{name}' has no faces; only triangle (or polygon) meshes are supported")
     if not np.issubdtype(np.asarray(tris).dtype, np.integer):
-        raise CurvefmError(f"mesh '{name}': face indices must be integers")
+        raise InvalidInput(f"mesh '{name}': face indices must be integers")
     if report.triangulated_polygons:
         report.warnings.append(f"{report.triangulated_polygons} polygons were triangulated as fans")
     return np.asarray(tris, dtype=np.int64)
@@ -118,7 +117,7 @@ def _check_indices(tris: np.ndarray, n: int, name: str) -> None:
     bad = (tris < 0) | (tris >= n)
     if bad.any():
         face = int(np.flatnonzero(bad.any(axis=1))[0])
-        raise CurvefmError(
+        raise InvalidInput(
             f"mesh '{name}': face {face} refers to vertex {int(tris[bad][0])}, but the mesh has {n} vertices "
             f"(valid ids are 0..{n - 1})"
         )
@@ -132,7 +131,7 @@ def _drop_degenerate(vertices: np.ndarray, tris: np.ndarray, report: MeshReport,
     flat = doubled_area <= 1e-14 * max(scale, 1e-300) ** 2
     degenerate = repeated | flat
     if degenerate.all():
-        raise CurvefmError(f"mesh '{name}': all {len(tris)} faces are degenerate (zero area)")
+        raise InvalidInput(f"mesh '{name}': all {len(tris)} faces are degenerate (zero area)")
     if degenerate.any():
         report.degenerate_faces_removed = int(degenerate.sum())
         report.warnings.append(f"{int(degenerate.sum())} degenerate faces (zero area) were removed")

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from curvefm.errors import InvalidInput
+
 BLOCK = 4096
 
 
@@ -23,7 +25,7 @@ def nearest_neighbors(data: np.ndarray, queries: np.ndarray, method: str = "fais
         return index.search(queries, 1)[1][:, 0].astype(np.int64)
     if method == "blocked":
         return _blocked_nearest(data, queries)
-    raise ValueError(f"unknown nearest-neighbour method {method!r}")
+    raise InvalidInput(f"unknown nearest-neighbour method {method!r}; methods are faiss, blocked")
 
 
 def _blocked_nearest(data: np.ndarray, queries: np.ndarray) -> np.ndarray:

@@ -11,7 +11,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from curvefm import registry
-from curvefm.errors import CurvefmError
+from curvefm.errors import InvalidInput, NotFound
 from curvefm.geometry import Mesh, check_edge_path
 
 
@@ -40,13 +40,13 @@ def read_curves(path: str | Path) -> list[CurveSpec]:
     try:
         return CurvesFile.model_validate(json.loads(Path(path).read_text())).curves
     except FileNotFoundError:
-        raise CurvefmError(f"curves file not found: {path}", kind="not_found") from None
+        raise NotFound(f"curves file not found: {path}") from None
     except json.JSONDecodeError as exc:
-        raise CurvefmError(f"curves file {path} is not valid JSON: {exc}") from None
+        raise InvalidInput(f"curves file {path} is not valid JSON: {exc}") from None
     except ValidationError as exc:
         first = exc.errors()[0]
         where = ".".join(str(p) for p in first["loc"])
-        raise CurvefmError(f"curves file {path}: {where}: {first['msg']}") from None
+        raise InvalidInput(f"curves file {path}: {where}: {first['msg']}") from None
 
 
 def trace_curve(
@@ -62,19 +62,19 @@ def trace_curve(
     points are joined by the tracer) or an explicit ``path`` (checked to be edge-connected).
     """
     if (waypoints is None) == (path is None):
-        raise CurvefmError("give a curve either as waypoints (endpoints) or as an explicit vertex path")
+        raise InvalidInput("give a curve either as waypoints (endpoints) or as an explicit vertex path")
     if path is not None:
         internal = mesh.internal_ids(path, "path vertex")
         check_edge_path(mesh.edge_graph, internal)
         return internal
     points = mesh.internal_ids(waypoints, "waypoint")
     if len(points) < 2:
-        raise CurvefmError(f"a curve needs at least two waypoints (start and end), got {len(points)}")
+        raise InvalidInput(f"a curve needs at least two waypoints (start and end), got {len(points)}")
     plugin, parsed = registry.load("tracer", tracer, params)
     pieces = [plugin.run(mesh, int(a), int(b), parsed) for a, b in zip(points[:-1], points[1:], strict=True)]
     traced = np.concatenate([pieces[0]] + [p[1:] for p in pieces[1:]])
     if len(traced) < 2:
-        raise CurvefmError("the curve's start and end are the same vertex; pick two different points")
+        raise InvalidInput("the curve's start and end are the same vertex; pick two different points")
     return traced
 
 

@@ -18,7 +18,7 @@ import numpy as np
 from pydantic import BaseModel, Field
 
 from curvefm import registry
-from curvefm.errors import CurvefmError
+from curvefm.errors import InvalidInput, NotFound
 from curvefm.fmap import FunctionTransfer
 from curvefm.geometry import Mesh, texture_coordinates
 from curvefm.registry import Plugin
@@ -177,7 +177,7 @@ def source_function(mesh: Mesh, function: TransferFunction, vertices: list[int] 
         low = mesh.vertices.min(axis=0)
         return (mesh.vertices - low) / np.maximum(np.ptp(mesh.vertices, axis=0), 1e-300)
     if not vertices:
-        raise CurvefmError("function 'indicator' needs vertices: file ids on the source, e.g. 12,345")
+        raise InvalidInput("function 'indicator' needs vertices: file ids on the source, e.g. 12,345")
     values = np.zeros(mesh.n_vertices)
     values[mesh.internal_ids(vertices, "indicator vertex")] = 1.0
     return values
@@ -191,7 +191,7 @@ def _projected(live: LiveSession, function: TransferFunction, vertices: list[int
 def _require_curve(record: SessionRecord, curve_id: str) -> None:
     if all(c.id != curve_id for c in record.curves):
         ids = ", ".join(c.id for c in record.curves) or "none yet"
-        raise CurvefmError(f"no curve '{curve_id}' in session {record.id}; its curves: {ids}", kind="not_found")
+        raise NotFound(f"no curve '{curve_id}' in session {record.id}; its curves: {ids}")
 
 
 def _summary(live: LiveSession, solve_ms: float) -> MapSummary:

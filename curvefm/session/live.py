@@ -17,7 +17,7 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 from curvefm.cache import LRU
-from curvefm.errors import CurvefmError
+from curvefm.errors import NotFound
 from curvefm.fmap import CurveMapSolver, FunctionTransfer
 from curvefm.geometry import Mesh
 from curvefm.session.pair import BasisNeed, ShapePair, basis_needs, build_solver, load_basis
@@ -29,12 +29,12 @@ from curvefm.store import Store, params_key
 LOCK_STRIPES = 64
 
 
-class UnknownShape(CurvefmError):
+class UnknownShape(NotFound):
     """No stored shape has this id."""
 
     def __init__(self, mesh_id: str, role: str = ""):
         self.mesh_id, self.role = mesh_id, role
-        super().__init__(f"no {role + ' ' if role else ''}shape with id '{mesh_id}'", kind="not_found")
+        super().__init__(f"no {role + ' ' if role else ''}shape with id '{mesh_id}'")
 
 
 @dataclass

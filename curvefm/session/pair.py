@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import Conflict
 from curvefm.fmap import CurveMapSolver
 from curvefm.session.record import CurveRecord, SessionRecord
 from curvefm.spectral import Basis, ShapePair
@@ -30,12 +30,12 @@ class BasisNeed:
         return f"the {self.role} shape {self.mesh_id} has no '{self.plugin}' basis with k >= {self.k} yet"
 
 
-class MissingBasis(CurvefmError):
+class MissingBasis(Conflict):
     """Bases a session needs are not computed yet (``needs`` says which); compute them, then try again."""
 
     def __init__(self, needs: list[BasisNeed]):
         self.needs = needs
-        super().__init__("; ".join(need.describe() for need in needs), kind="conflict")
+        super().__init__("; ".join(need.describe() for need in needs))
 
 
 def basis_needs(record: SessionRecord) -> tuple[BasisNeed, BasisNeed]:

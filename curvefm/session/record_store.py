@@ -12,19 +12,19 @@ import re
 import time
 from pathlib import Path
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import Conflict, InvalidInput, NotFound
 from curvefm.session.record import SessionRecord
 from curvefm.store import atomic_write
 
 _SESSION_ID = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
 
 
-class UnknownSession(CurvefmError):
+class UnknownSession(NotFound):
     """No session has this id (or the id cannot name one)."""
 
     def __init__(self, session_id: str):
         self.session_id = session_id
-        super().__init__(f"no session with id '{session_id}'", kind="not_found")
+        super().__init__(f"no session with id '{session_id}'")
 
 
 class SessionStore:
@@ -47,9 +47,9 @@ class SessionStore:
     def create(self, record: SessionRecord) -> None:
         """Write a new record as it is; an id in use is a conflict."""
         if not well_formed(record.id):
-            raise CurvefmError(f"a session id is 1-64 letters, digits, '-' or '_', got '{record.id}'")
+            raise InvalidInput(f"a session id is 1-64 letters, digits, '-' or '_', got '{record.id}'")
         if self._path(record.id).exists():
-            raise CurvefmError(f"session '{record.id}' already exists", kind="conflict")
+            raise Conflict(f"session '{record.id}' already exists")
         self._write(record)
 
     def write(self, record: SessionRecord) -> SessionRecord:

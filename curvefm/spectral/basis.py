@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import InvalidInput
 
 
 @dataclass(frozen=True, eq=False)
@@ -32,7 +32,7 @@ class Basis:
 
     def truncated(self, k: int) -> Basis:
         if k > self.k:
-            raise CurvefmError(f"asked for {k} basis functions but this basis has only {self.k}")
+            raise InvalidInput(f"asked for {k} basis functions but this basis has only {self.k}")
         return Basis(self.evals[:k], np.ascontiguousarray(self.evecs[:, :k]), self.mass)
 
     def project(self, values: np.ndarray) -> np.ndarray:
@@ -59,8 +59,8 @@ def max_k(n_vertices: int) -> int:
 
 def check_k(k: int, n_vertices: int, name: str = "") -> None:
     if not isinstance(k, int | np.integer) or k < 1:
-        raise CurvefmError(f"k must be a positive integer, got {k!r}")
+        raise InvalidInput(f"k must be a positive integer, got {k!r}")
     if k > max_k(n_vertices):
-        raise CurvefmError(
+        raise InvalidInput(
             f"k = {k} is too large for mesh '{name}' with {n_vertices} vertices (at most {max_k(n_vertices)})"
         )

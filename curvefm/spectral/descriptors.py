@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import InvalidInput
 from curvefm.spectral.basis import Basis
 
 
@@ -24,9 +24,9 @@ def _energy_filters(evals: np.ndarray, n_energies: int, sigma: float) -> np.ndar
     """(n_energies, k-1) normalised log-normal filters over the nonzero eigenvalues; ``sigma`` is the filter
     width as a fraction of the log-eigenvalue range (Aubry et al.'s variance 6 over 100 energies is 0.06)."""
     if n_energies < 1:
-        raise CurvefmError(f"n_energies must be at least 1, got {n_energies}")
+        raise InvalidInput(f"n_energies must be at least 1, got {n_energies}")
     if len(evals) < 3:
-        raise CurvefmError(f"wave kernels need at least 3 basis functions, got {len(evals)}")
+        raise InvalidInput(f"wave kernels need at least 3 basis functions, got {len(evals)}")
     log_lam = np.log(np.maximum(evals[1:], 1e-12))
     energies = np.linspace(log_lam[0], log_lam[-1], n_energies)
     width = sigma * (log_lam[-1] - log_lam[0])
@@ -55,7 +55,7 @@ def curve_function(vertices: np.ndarray, path: np.ndarray) -> np.ndarray:
     lengths = np.linalg.norm(np.diff(vertices[path], axis=0), axis=1)
     arc = np.r_[0.0, np.cumsum(lengths)]
     if arc[-1] <= 0:
-        raise CurvefmError("a curve of zero length cannot be turned into a function")
+        raise InvalidInput("a curve of zero length cannot be turned into a function")
     f = -np.ones(len(vertices))
     f[path] = arc / arc[-1]
     return f

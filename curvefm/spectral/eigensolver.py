@@ -25,6 +25,8 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import norm as sparse_norm
 from scipy.sparse.linalg import splu
 
+from curvefm.errors import InternalError, InvalidInput
+
 log = logging.getLogger(__name__)
 
 SIGMA = -0.01  # the shift of the plain call; L - SIGMA*A is positive definite
@@ -32,8 +34,8 @@ BLOCK = 8
 PARALLEL_MIN_VERTICES = 15_000  # below this, starting two Python processes costs about what it saves
 
 
-class EigenError(RuntimeError):
-    pass
+class EigenError(InternalError):
+    """The eigensolver failed (factorisation, convergence, a worker process): our failure, not the user's."""
 
 
 def smallest_eigenpairs(
@@ -49,7 +51,7 @@ def smallest_eigenpairs(
     mass = np.asarray(mass, dtype=float)
     n = len(mass)
     if not 0 < k < n:
-        raise ValueError(f"need 0 < k < n vertices, got k={k}, n={n}")
+        raise InvalidInput(f"need 0 < k < n vertices, got k={k}, n={n}")
     if workers is None:
         cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
         workers = 2 if n >= PARALLEL_MIN_VERTICES and k >= 16 and cores >= 2 else 1

@@ -103,7 +103,7 @@ export async function waitForJob(jobId, onProgress, intervalMs = 250) {
     onProgress(job);
     if (job.state === "finished") return job;
     if (job.state === "failed" || job.state === "canceled") {
-      throw new ApiError(job.error || `job ${job.state}: ${job.message}`, { kind: job.state });
+      throw new ApiError(job.error?.message || `job ${job.state}: ${job.message}`, { kind: job.state });
     }
     await sleep(intervalMs);
   }

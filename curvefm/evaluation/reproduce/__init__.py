@@ -21,7 +21,7 @@ from collections.abc import Callable
 from datetime import date
 from pathlib import Path
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import InvalidInput
 from curvefm.evaluation.ground_truth import shared_data_dir
 from curvefm.evaluation.reproduce.accuracy import run_accuracy
 from curvefm.evaluation.reproduce.datasets import DATASETS, SUITES
@@ -46,10 +46,10 @@ def reproduce(
     """Run the experiments, write ``accuracy.json``, ``timing.json``, the plots and the report
     (``report`` or ``OUT/results.md``); return everything as one dict."""
     if suite not in SUITES:
-        raise CurvefmError(f"unknown suite '{suite}'; suites are {', '.join(SUITES)}")
+        raise InvalidInput(f"unknown suite '{suite}'; suites are {', '.join(SUITES)}")
     unknown = [e for e in experiments if e not in EXPERIMENTS]
     if unknown or not experiments:
-        raise CurvefmError(f"unknown experiment {unknown or experiments!r}; experiments are {', '.join(EXPERIMENTS)}")
+        raise InvalidInput(f"unknown experiment {unknown or experiments!r}; experiments are {', '.join(EXPERIMENTS)}")
     require_matplotlib()
     data, chosen, store = shared_data_dir(), SUITES[suite], store or Store()
     out = Path(out)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import InvalidInput
 from curvefm.evaluation.metrics import CURVE_RADII
 from curvefm.evaluation.reproduce.accuracy import VARIANTS
 
@@ -21,7 +21,7 @@ def require_matplotlib() -> None:
     try:
         import matplotlib  # noqa: F401
     except ImportError:
-        raise CurvefmError("plots need matplotlib: pip install 'curvefm[reproduce]'") from None
+        raise InvalidInput("plots need matplotlib: pip install 'curvefm[reproduce]'") from None
 
 
 def _pyplot():

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import InvalidInput
 from curvefm.geometry.mesh import Mesh
 from curvefm.geometry.validation import build_mesh
 
@@ -19,6 +19,6 @@ def read_gltf(path: Path, name: str) -> Mesh:
     try:
         scene = trimesh.load(path, process=False, force="mesh")
     except Exception as exc:  # trimesh raises many types for broken files
-        raise CurvefmError(f"could not read {path.name} as glTF: {exc}") from None
+        raise InvalidInput(f"could not read {path.name} as glTF: {exc}") from None
     uv = getattr(scene.visual, "uv", None)
     return build_mesh(np.asarray(scene.vertices), np.asarray(scene.faces), uv, name=name)

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import InvalidInput
 from curvefm.geometry.mesh import Mesh
 from curvefm.geometry.validation import build_mesh, per_vertex_uv
 
@@ -37,9 +37,9 @@ def read_obj(path: Path, name: str) -> Mesh:
                 elif tag == "mtllib" and len(parts) > 1:
                     mtllib = path.parent / " ".join(parts[1:])
     except ValueError as exc:
-        raise CurvefmError(f"{path.name} is not a valid OBJ file: {exc}") from None
+        raise InvalidInput(f"{path.name} is not a valid OBJ file: {exc}") from None
     if not vertices:
-        raise CurvefmError(f"could not read any vertices from {path.name}: the file is empty or malformed")
+        raise InvalidInput(f"could not read any vertices from {path.name}: the file is empty or malformed")
     uv = _obj_vertex_uv(len(vertices), polys, poly_uv, texcoords)
     return build_mesh(vertices, polys, uv, name=name, texture_path=_texture_from_mtl(mtllib))
 
@@ -56,7 +56,7 @@ def _obj_vertex_uv(n: int, polys, poly_uv, texcoords) -> np.ndarray | None:
     corner_v = np.concatenate([np.asarray(p) for p in polys])
     corner_t = np.concatenate([np.asarray(p) for p in poly_uv])
     if corner_t.max() >= len(tc) or corner_t.min() < 0:
-        raise CurvefmError("OBJ face refers to a texture coordinate that does not exist")
+        raise InvalidInput("OBJ face refers to a texture coordinate that does not exist")
     return per_vertex_uv(corner_v, tc[corner_t], n)
 
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import InvalidInput
 from curvefm.geometry.mesh import Mesh
 from curvefm.geometry.validation import build_mesh
 
@@ -17,7 +17,7 @@ def read_off(path: Path, name: str) -> Mesh:
     lines = (line.split("#", 1)[0].split() for line in path.read_text(errors="replace").splitlines())
     tokens = [t for t in lines if t]
     if not tokens or not tokens[0][0].upper().endswith("OFF"):
-        raise CurvefmError(f"{path.name} is not an OFF file: it does not start with 'OFF'")
+        raise InvalidInput(f"{path.name} is not an OFF file: it does not start with 'OFF'")
     try:
         counts = tokens[0][1:] or tokens[1]
         n_vertices, n_faces = int(counts[0]), int(counts[1])
@@ -35,7 +35,7 @@ def read_off(path: Path, name: str) -> Mesh:
         else:
             faces = [[int(i) for i in row[1 : 1 + int(row[0])]] for row in face_rows]
     except (ValueError, IndexError) as exc:
-        raise CurvefmError(f"{path.name} is not a valid OFF file: {exc}") from None
+        raise InvalidInput(f"{path.name} is not a valid OFF file: {exc}") from None
     return build_mesh(vertices, faces, name=name)
 
 

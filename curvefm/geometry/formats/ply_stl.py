@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from curvefm.errors import CurvefmError
+from curvefm.errors import InvalidInput
 from curvefm.geometry.mesh import Mesh
 from curvefm.geometry.validation import build_mesh, per_vertex_uv
 
@@ -20,9 +20,9 @@ def read_ply_stl(path: Path, name: str) -> Mesh:
     vertices = np.asarray(m.vertices)
     faces = np.asarray(m.triangles)
     if len(vertices) == 0:
-        raise CurvefmError(f"could not read any vertices from {path.name}: the file is empty or malformed")
+        raise InvalidInput(f"could not read any vertices from {path.name}: the file is empty or malformed")
     if len(faces) == 0:
-        raise CurvefmError(f"{path.name} has no faces; only triangle meshes are supported")
+        raise InvalidInput(f"{path.name} has no faces; only triangle meshes are supported")
     uv = None
     if m.has_triangle_uvs():
         uv = per_vertex_uv(faces, np.asarray(m.triangle_uvs).reshape(-1, 3, 2), len(vertices))
@@ -48,4 +48,4 @@ def write_ply_stl(mesh: Mesh, path: Path) -> None:
     if path.suffix.lower() == ".stl":
         m.compute_triangle_normals()  # open3d refuses to write STL without normals
     if not o3d.io.write_triangle_mesh(str(path), m):
-        raise CurvefmError(f"could not write {path.name}")
+        raise InvalidInput(f"could not write {path.name}")

@@ -1,88 +1,29 @@
-"""The job queue the API talks to: one interface, two implementations with the same job states.
-
-* :class:`EmbeddedQueue` runs job functions in a thread pool inside the API process (no Redis needed).
-* :class:`curvefm.workers.rq_queue.RQQueue` sends them to RQ on Redis, run by ``curvefm worker`` processes.
-
-States: ``queued``, ``started``, ``finished``, ``failed``, ``canceled``. Progress is a fraction in [0, 1] with
-a message. A failed job keeps its traceback and exposes a one-line readable ``error``.
-"""
+"""The in-process executor: job functions run in a thread pool of the API process (no Redis needed)."""
 
 from __future__ import annotations
 
+import logging
 import threading
 import time
-import traceback
 import uuid
-from abc import ABC, abstractmethod
 from collections import OrderedDict
 from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import dataclass, replace
-from typing import Literal
+from dataclasses import replace
 
-from curvefm.errors import CurvefmError
 from curvefm.progress import Cancelled
-from curvefm.workers import jobs
 from curvefm.workers.context import JobContext, embedded_job, progress_fraction
+from curvefm.workers.interface import (
+    ENDED_STATES,
+    JobFailure,
+    JobInfo,
+    JobQueue,
+    already_ended,
+    check_kind,
+    unknown_job,
+)
+from curvefm.workers.jobs import JOB_FUNCTIONS
 
-JobState = Literal["queued", "started", "finished", "failed", "canceled"]
-ENDED_STATES = ("finished", "failed", "canceled")
-JOB_FUNCTIONS = {"basis": jobs.compute_basis, "refine": jobs.refine}
-
-
-@dataclass(frozen=True)
-class JobInfo:
-    id: str
-    kind: str
-    state: JobState
-    progress: float = 0.0
-    message: str = ""
-    result: dict | None = None
-    error: str | None = None
-    traceback: str | None = None
-    worker: str | None = None
-    created_at: float | None = None
-    started_at: float | None = None
-    ended_at: float | None = None
-
-
-class JobQueue(ABC):
-    mode: str
-
-    @abstractmethod
-    def submit(self, kind: str, kwargs: dict, dedupe_key: str | None = None) -> JobInfo:
-        """Queue ``JOB_FUNCTIONS[kind](**kwargs)``. While a job with the same ``dedupe_key`` is queued or
-        running, return that job instead of starting another."""
-
-    @abstractmethod
-    def get(self, job_id: str) -> JobInfo:
-        """The job's current state; raises a ``not_found`` error for unknown ids."""
-
-    @abstractmethod
-    def cancel(self, job_id: str) -> JobInfo:
-        """Cancel a queued job at once, or ask a running one to stop; ended jobs raise a ``conflict``."""
-
-    @abstractmethod
-    def close(self) -> None:
-        """Release threads and connections."""
-
-
-def unknown_job(job_id: str) -> CurvefmError:
-    return CurvefmError(f"no job with id '{job_id}' (finished jobs are forgotten after a while)", kind="not_found")
-
-
-def already_ended(info: JobInfo) -> CurvefmError:
-    return CurvefmError(f"job {info.id} already {info.state}; there is nothing to cancel", kind="conflict")
-
-
-def check_kind(kind: str) -> None:
-    if kind not in JOB_FUNCTIONS:
-        raise CurvefmError(f"unknown job kind '{kind}'; kinds are {', '.join(JOB_FUNCTIONS)}")
-
-
-def readable_error(exc: BaseException) -> str:
-    if isinstance(exc, CurvefmError):
-        return exc.message
-    return f"{type(exc).__name__}: {exc}"
+log = logging.getLogger("curvefm.workers")
 
 
 class EmbeddedQueue(JobQueue):
@@ -149,13 +90,8 @@ class EmbeddedQueue(JobQueue):
         except Cancelled:
             self._end(job_id, state="canceled", message="canceled")
         except Exception as exc:
-            self._end(
-                job_id,
-                state="failed",
-                message="failed",
-                error=readable_error(exc),
-                traceback=traceback.format_exc(),
-            )
+            log.warning("job %s (%s) failed", job_id, kind, exc_info=True)
+            self._end(job_id, state="failed", message="failed", error=JobFailure.of(exc))
         else:
             self._end(job_id, state="finished", progress=1.0, message="finished", result=result)
 
@@ -179,12 +115,3 @@ class EmbeddedQueue(JobQueue):
         ended = [j for j, info in self._jobs.items() if info.state in ENDED_STATES]
         for job_id in ended[: max(len(ended) - self.KEEP_ENDED, 0)]:
             del self._jobs[job_id]
-
-
-def make_queue(redis_url: str | None, prefix: str = "", retries: int = 1, embedded_workers: int = 2) -> JobQueue:
-    """RQ on Redis when a URL is given, else the in-process executor."""
-    if not redis_url:
-        return EmbeddedQueue(embedded_workers)
-    from curvefm.workers.rq_queue import RQQueue
-
-    return RQQueue(redis_url, prefix=prefix, retries=retries)

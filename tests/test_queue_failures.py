@@ -1,0 +1,52 @@
+"""A failed job says why as data, a kind and one readable line, alike in the embedded executor and on RQ with a
+real worker process; no traceback text is parsed, and none is part of what a job reports."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from curvefm.workers.embedded import EmbeddedQueue
+from curvefm.workers.interface import JOB_KINDS, JobFailure, JobInfo, JobQueue
+from curvefm.workers.jobs import JOB_FUNCTIONS
+
+
+@pytest.fixture(params=["embedded", "redis"])
+def queue(request) -> JobQueue:
+    if request.param == "embedded":
+        queue = EmbeddedQueue(max_workers=1)
+    else:
+        from curvefm.workers.rq_queue import RQQueue
+
+        redis_url, prefix = request.getfixturevalue("redis_url"), request.getfixturevalue("redis_prefix")
+        request.getfixturevalue("processes").worker(redis_url, prefix, "w1")
+        queue = RQQueue(redis_url, prefix=prefix, retries=0)
+    yield queue
+    queue.close()
+
+
+def failed(queue: JobQueue, kwargs: dict, timeout: float = 120) -> JobInfo:
+    job_id = queue.submit("basis", kwargs).id
+    deadline = time.monotonic() + timeout
+    while (info := queue.get(job_id)).state not in ("finished", "failed", "canceled"):
+        assert time.monotonic() < deadline, info
+        time.sleep(0.05)
+    assert info.state == "failed", info
+    return info
+
+
+def test_a_project_error_keeps_its_kind_and_message(queue, tmp_path):
+    info = failed(queue, {"data_dir": str(tmp_path), "mesh_id": "feedbeef", "k": 20})
+    assert info.error == JobFailure("not_found", "no shape with id 'feedbeef'")
+
+
+def test_any_other_exception_is_an_internal_failure_in_one_line(queue, tmp_path):
+    info = failed(queue, {"data_dir": str(tmp_path), "mesh_id": "feedbeef", "k": 20, "colour": "red"})
+    assert info.error.kind == "internal"
+    assert info.error.message.startswith("TypeError: ") and "'colour'" in info.error.message
+    assert "\n" not in info.error.message and "Traceback" not in info.error.message
+
+
+def test_every_job_kind_has_a_function():
+    assert set(JOB_FUNCTIONS) == set(JOB_KINDS)

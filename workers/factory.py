@@ -1,0 +1,22 @@
+"""``make_queue``: the job queue a service runs with, RQ on Redis or the in-process executor."""
+
+from __future__ import annotations
+
+from curvefm.workers.embedded import EmbeddedQueue
+from curvefm.workers.interface import JobQueue
+
+API_REAP_INTERVAL_S = 5.0
+"""How often the API looks for jobs of dead workers (the workers themselves look more often)."""
+
+
+def make_queue(redis_url: str | None, prefix: str = "", retries: int = 1, embedded_workers: int = 2) -> JobQueue:
+    """RQ on Redis when a URL is given (checked to answer, with its reaper of dead workers' jobs running until
+    the queue is closed), else the in-process executor."""
+    if not redis_url:
+        return EmbeddedQueue(embedded_workers)
+    from curvefm.workers.rq_queue import RQQueue  # needs redis and rq, which embedded mode does without
+
+    queue = RQQueue(redis_url, prefix=prefix, retries=retries)
+    queue.ping()
+    queue.start_reaper(API_REAP_INTERVAL_S)
+    return queue
