@@ -131,6 +131,58 @@ def cmd_worker(args) -> int:
     return 0
 
 
+def cmd_users_add(args) -> int:
+    token = _users(args).add(args.name, admin=args.admin)
+    _audit(args, "user.add", args.name, {"admin": args.admin})
+    print(f"added {'admin' if args.admin else 'user'} {args.name}; the token is shown only this once")
+    print(f"token for {args.name}: {token}")
+    return 0
+
+
+def cmd_users_list(args) -> int:
+    users = _users(args).list()
+    if args.json:
+        print(json.dumps([vars(user) for user in users], indent=2))
+        return 0
+    if not users:
+        print("no users; 'curvefm users add NAME' makes one")
+    for user in users:
+        print(f"{user.name:24s} {'admin' if user.admin else 'user':5s}  created {user.created_at}")
+    return 0
+
+
+def cmd_users_remove(args) -> int:
+    _users(args).remove(args.name)
+    _audit(args, "user.remove", args.name)
+    print(f"removed user {args.name}; its token no longer works")
+    return 0
+
+
+def cmd_users_token(args) -> int:
+    if not args.rotate:
+        raise CurvefmError(
+            "tokens are stored hashed and cannot be shown again; 'curvefm users token NAME --rotate' makes a new "
+            "one (the old one stops working)"
+        )
+    token = _users(args).rotate(args.name)
+    _audit(args, "user.rotate", args.name)
+    print(f"new token for {args.name}; the old one no longer works")
+    print(f"token for {args.name}: {token}")
+    return 0
+
+
+def _users(args):
+    from curvefm.access import UserStore
+
+    return UserStore(args.data)
+
+
+def _audit(args, action: str, target: str, detail: dict | None = None) -> None:
+    from curvefm.access import AuditLog
+
+    AuditLog(args.data).record("cli", action, target, detail)
+
+
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="curvefm", description=__doc__)
     data = argparse.ArgumentParser(add_help=False)
@@ -185,6 +237,23 @@ def parser() -> argparse.ArgumentParser:
     w.add_argument("--name", help="worker name (default: chosen by RQ)")
     w.add_argument("--burst", action="store_true", help="exit once the queues are empty")
     w.set_defaults(run=cmd_worker)
+
+    u = sub.add_parser("users", help="manage the service's users and their bearer tokens")
+    users = u.add_subparsers(dest="users_command", required=True)
+    ua = users.add_parser("add", parents=[data], help="create a user and print its token (last word of the output)")
+    ua.add_argument("name", help="1 to 64 letters, digits, '_', '.' or '-'")
+    ua.add_argument("--admin", action="store_true", help="may see and manage everything")
+    ua.set_defaults(run=cmd_users_add)
+    ul = users.add_parser("list", parents=[data], help="list users (name, admin, created)")
+    ul.add_argument("--json", action="store_true")
+    ul.set_defaults(run=cmd_users_list)
+    ur = users.add_parser("remove", parents=[data], help="delete a user; its token stops working at once")
+    ur.add_argument("name")
+    ur.set_defaults(run=cmd_users_remove)
+    ut = users.add_parser("token", parents=[data], help="replace a user's token (tokens cannot be shown again)")
+    ut.add_argument("name")
+    ut.add_argument("--rotate", action="store_true", help="make a new token and print it; the old one stops working")
+    ut.set_defaults(run=cmd_users_token)
 
     pl = sub.add_parser("plugins", help="list installed plugins with their parameters")
     pl.add_argument("--json", action="store_true")

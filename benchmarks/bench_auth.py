@@ -1,0 +1,72 @@
+"""What checking a bearer token costs an API request, with 1,000 users (prints JSON).
+
+* ``authenticate_us``: :meth:`UserStore.authenticate` with a valid token and with a wrong one, per call, while
+  the users file is unchanged (a ``stat``, a SHA-256 and a dictionary lookup);
+* ``first_after_change_ms``: the first call after another process changed the file (it is parsed again);
+* ``add_ms``: adding a user to 1,000 others (the CLI's side: lock, read, rewrite, fsync, rename).
+
+The data directory is a fresh temporary folder (``--dir`` to put it on another file system).
+
+    python benchmarks/bench_auth.py [--users 1000] [--calls 20000] [--dir DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import tempfile
+import time
+
+from common import machine, median_ms
+
+from curvefm.access import TOKEN_PREFIX, UserStore
+
+
+def elapsed_ns(fn) -> int:
+    start = time.perf_counter_ns()
+    fn()
+    return time.perf_counter_ns() - start
+
+
+def per_call_us(fn, calls: int) -> dict:
+    times = sorted(elapsed_ns(fn) for _ in range(calls))
+    return {"p50": round(times[len(times) // 2] / 1e3, 2), "p99": round(times[int(len(times) * 0.99)] / 1e3, 2),
+            "mean": round(statistics.fmean(times) / 1e3, 2)}
+
+
+def first_after_change_ms(api: UserStore, cli: UserStore, token: str, repeat: int) -> float:
+    def change_then_authenticate() -> int:
+        cli.rotate("user0")  # not timed
+        return elapsed_ns(lambda: api.authenticate(token))
+
+    return round(statistics.median(change_then_authenticate() for _ in range(repeat)) / 1e6, 3)
+
+
+def main() -> None:
+    options = argparse.ArgumentParser(description=__doc__)
+    options.add_argument("--users", type=int, default=1000)
+    options.add_argument("--calls", type=int, default=20000)
+    options.add_argument("--dir", help="parent folder of the temporary data directory")
+    args = options.parse_args()
+    with tempfile.TemporaryDirectory(dir=args.dir) as data:
+        cli, api = UserStore(data), UserStore(data)  # two instances: the CLI's and an API process's
+        tokens = [cli.add(f"user{i}") for i in range(args.users)]
+        token = tokens[len(tokens) // 2]
+        assert api.authenticate(token) is not None
+        wrong = TOKEN_PREFIX + "x" * 43
+        extra = (f"extra{i}" for i in range(20))
+        print(json.dumps({
+            "users": args.users,
+            "calls": args.calls,
+            "authenticate_us": {"valid": per_call_us(lambda: api.authenticate(token), args.calls),
+                                "wrong": per_call_us(lambda: api.authenticate(wrong), args.calls)},
+            "first_after_change_ms": first_after_change_ms(api, cli, token, 20),
+            "add_ms": round(median_ms(lambda: cli.add(next(extra)), 20), 2),
+            "file_bytes": api.path.stat().st_size,
+            "machine": machine(),
+        }, indent=2))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,187 @@
+"""Users, tokens and the audit log on real files, changed by real concurrent processes."""
+
+import json
+import subprocess
+import sys
+import textwrap
+import time
+
+import pytest
+
+from curvefm.access import TOKEN_PREFIX, AuditLog, User, UserStore
+from curvefm.access import audit as audit_module
+from curvefm.errors import CurvefmError
+
+
+def run_together(data, script: str, *process_args: str) -> list[str]:
+    """Run ``script`` (``data``, ``args`` and ``go`` are defined for it) in one process per argument, all
+    released at the same moment by a start file; returns their outputs."""
+    go = data / "go"
+    prelude = f"import sys, os, time\ndata, args, go = {str(data)!r}, sys.argv[1:], {str(go)!r}\n"
+    wait = "while not os.path.exists(go): time.sleep(0.001)\n"
+    processes = [
+        subprocess.Popen([sys.executable, "-c", prelude + textwrap.dedent(script).replace("#GO\n", wait), arg],
+                         stdout=subprocess.PIPE, text=True)
+        for arg in process_args
+    ]
+    time.sleep(1.0)  # let both finish importing
+    go.touch()
+    outputs = [p.communicate(timeout=120)[0] for p in processes]
+    assert [p.returncode for p in processes] == [0] * len(processes)
+    return outputs
+
+
+# -- users ---------------------------------------------------------------------------------------------------
+def test_a_token_authenticates_until_rotated_or_removed(tmp_path):
+    users = UserStore(tmp_path)
+    assert users.is_empty() and users.authenticate(TOKEN_PREFIX + "x" * 43) is None
+    token = users.add("alice")
+    assert token.startswith(TOKEN_PREFIX) and len(token) > 40
+    alice = users.authenticate(token)
+    assert alice == User(name="alice", admin=False, created_at=alice.created_at) and not users.is_empty()
+    new = users.rotate("alice")
+    assert users.authenticate(token) is None and users.authenticate(new).name == "alice"
+    users.remove("alice")
+    assert users.authenticate(new) is None and users.is_empty()
+
+
+@pytest.mark.parametrize("token", ["", "cfm_", "not-a-token", "cfm_" + "A" * 500, None, 42])
+def test_malformed_tokens_are_refused(tmp_path, token):
+    users = UserStore(tmp_path)
+    users.add("alice")
+    assert users.authenticate(token) is None
+
+
+def test_the_users_file_holds_hashes_not_tokens(tmp_path):
+    users = UserStore(tmp_path)
+    tokens = [users.add("alice", admin=True), users.add("bob")]
+    text = (tmp_path / "access" / "users.json").read_text()
+    assert not any(token in text or token[len(TOKEN_PREFIX):] in text for token in tokens)
+    assert len(json.loads(text)["users"][0]["token_sha256"]) == 64
+    assert [(u.name, u.admin) for u in users.list()] == [("alice", True), ("bob", False)]
+    assert set(vars(users.list()[0])) == {"name", "admin", "created_at"}
+    assert (tmp_path / "access" / "users.json").stat().st_mode & 0o077 == 0
+
+
+@pytest.mark.parametrize("name", ["", "a" * 65, "a b", "élodie", "a/b", "..", "."])
+def test_bad_names_are_refused(tmp_path, name):
+    with pytest.raises(CurvefmError) as error:
+        UserStore(tmp_path).add(name)
+    assert error.value.kind == "invalid" and "user name" in error.value.message
+
+
+def test_names_of_the_allowed_characters_are_accepted(tmp_path):
+    users = UserStore(tmp_path)
+    for name in ["a" * 64, "Jo.Smith-2_x", "7"]:
+        users.add(name)
+    assert sorted(user.name for user in users.list()) == sorted(["a" * 64, "Jo.Smith-2_x", "7"])
+
+
+def test_duplicates_and_unknown_users_are_errors_of_their_kind(tmp_path):
+    users = UserStore(tmp_path)
+    users.add("alice")
+    with pytest.raises(CurvefmError) as duplicate:
+        users.add("alice", admin=True)
+    assert duplicate.value.kind == "conflict"
+    for change in (users.remove, users.rotate):
+        with pytest.raises(CurvefmError) as unknown:
+            change("bob")
+        assert unknown.value.kind == "not_found" and "'bob'" in unknown.value.message
+
+
+def test_a_local_admin_is_made_only_when_there_is_no_user(tmp_path):
+    users = UserStore(tmp_path)
+    token = users.ensure_local_admin()
+    assert users.authenticate(token) == User("admin", True, users.list()[0].created_at)
+    assert users.ensure_local_admin() is None
+    other = UserStore(tmp_path / "other")
+    other.add("alice")
+    assert other.ensure_local_admin() is None and [u.name for u in other.list()] == ["alice"]
+
+
+def test_two_processes_adding_users_at_once_lose_none(tmp_path):
+    script = """
+        from curvefm.access import UserStore
+        users = UserStore(data)
+        #GO
+        for i in range(20):
+            print(users.add(f"{args[0]}{i}"))
+    """
+    outputs = run_together(tmp_path, script, "a", "b")
+    users = UserStore(tmp_path)
+    assert len(users.list()) == 40
+    tokens = [line for output in outputs for line in output.split()]
+    assert sorted(users.authenticate(t).name for t in tokens) == sorted(f"{p}{i}" for p in "ab" for i in range(20))
+
+
+def test_changes_by_another_process_take_effect_at_once(tmp_path):
+    users = UserStore(tmp_path)
+    token = users.add("alice")
+    assert users.authenticate(token).name == "alice"  # now cached
+    script = "from curvefm.access import UserStore\nu = UserStore(data)\nu.remove('alice')\nprint(u.add('bob'))\n"
+    done = subprocess.run([sys.executable, "-c", f"data = {str(tmp_path)!r}\n" + script], capture_output=True,
+                          text=True, check=True)
+    assert users.authenticate(token) is None
+    assert users.authenticate(done.stdout.strip()).name == "bob"
+
+
+# -- audit log -----------------------------------------------------------------------------------------------
+def test_the_audit_log_reads_the_last_events_with_filters(tmp_path):
+    log = AuditLog(tmp_path)
+    assert log.read() == []
+    for i in range(10):
+        log.record("alice" if i % 2 else "bob", "session.create", f"s{i}", {"n": i})
+    assert [e["target"] for e in log.read(limit=3)] == ["s7", "s8", "s9"]
+    assert [e["target"] for e in log.read(limit=2, user="bob")] == ["s6", "s8"]
+    event = log.read(limit=1)[0]
+    assert set(event) == {"time", "user", "action", "target", "detail"} and event["detail"] == {"n": 9}
+    assert log.read(since="2000-01-01T00:00:00") == log.read(limit=100) and len(log.read()) == 10
+    everything = log.read()
+    assert log.read(since=everything[4]["time"]) == [e for e in everything if e["time"] >= everything[4]["time"]]
+    assert log.read(since=event["time"])[-1] == event
+    assert log.read(since="2999-01-01T00:00:00+00:00") == []
+
+
+def test_reading_backwards_crosses_blocks_and_skips_broken_lines(tmp_path, monkeypatch):
+    monkeypatch.setattr(audit_module, "BLOCK_BYTES", 37)  # shorter than a line: lines span blocks
+    log = AuditLog(tmp_path)
+    for i in range(50):
+        log.record("alice", "shape.upload", f"shape{i}", {"pad": "x" * (i % 7)})
+    with open(log.path, "ab") as f:
+        f.write(b'{"time": "cut sh')
+    assert [e["target"] for e in log.read(limit=100)] == [f"shape{i}" for i in range(50)]
+    assert [e["target"] for e in log.read(limit=4)] == [f"shape{i}" for i in range(46, 50)]
+
+
+def test_the_audit_log_never_writes_a_token_or_the_data_path(tmp_path):
+    users, log = UserStore(tmp_path), AuditLog(tmp_path)
+    token = users.add("alice")
+    log.record("alice", "session.fail", "s1", {"error": f"bad token {token} in {tmp_path}/sessions/s1.json"})
+    text = log.path.read_text()
+    assert token not in text and str(tmp_path) not in text
+    assert log.read()[0]["detail"]["error"] == "bad token cfm_[redacted] in [data]/sessions/s1.json"
+
+
+@pytest.mark.parametrize("options", [{"limit": 0}, {"limit": "5"}, {"since": "yesterday"}])
+def test_bad_audit_queries_are_invalid(tmp_path, options):
+    with pytest.raises(CurvefmError) as error:
+        AuditLog(tmp_path).read(**options)
+    assert error.value.kind == "invalid"
+
+
+def test_two_processes_appending_audit_lines_leave_them_whole(tmp_path):
+    script = """
+        from curvefm.access import AuditLog
+        log = AuditLog(data)
+        #GO
+        for i in range(300):
+            log.record(args[0], "job.cancel", str(i), {"filler": args[0] * 4000})
+    """
+    run_together(tmp_path, script, "a", "b")
+    lines = (tmp_path / "access" / "audit.jsonl").read_text().splitlines()
+    events = [json.loads(line) for line in lines]
+    assert len(events) == 600
+    for user in "ab":
+        mine = [e for e in events if e["user"] == user]
+        assert [e["target"] for e in mine] == [str(i) for i in range(300)]
+        assert all(e["detail"]["filler"] == user * 4000 for e in mine)
