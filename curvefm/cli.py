@@ -160,7 +160,7 @@ def cmd_users_remove(args) -> int:
 
 def cmd_users_token(args) -> int:
     if not args.rotate:
-        raise CurvefmError(
+        raise InvalidInput(
             "tokens are stored hashed and cannot be shown again; 'curvefm users token NAME --rotate' makes a new "
             "one (the old one stops working)"
         )

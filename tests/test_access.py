@@ -67,7 +67,7 @@ def test_the_users_file_holds_hashes_not_tokens(tmp_path):
 def test_bad_names_are_refused(tmp_path, name):
     with pytest.raises(CurvefmError) as error:
         UserStore(tmp_path).add(name)
-    assert error.value.kind == "invalid" and "user name" in error.value.message
+    assert error.value.code == "invalid" and "user name" in error.value.message
 
 
 def test_names_of_the_allowed_characters_are_accepted(tmp_path):
@@ -82,11 +82,11 @@ def test_duplicates_and_unknown_users_are_errors_of_their_kind(tmp_path):
     users.add("alice")
     with pytest.raises(CurvefmError) as duplicate:
         users.add("alice", admin=True)
-    assert duplicate.value.kind == "conflict"
+    assert duplicate.value.code == "conflict"
     for change in (users.remove, users.rotate):
         with pytest.raises(CurvefmError) as unknown:
             change("bob")
-        assert unknown.value.kind == "not_found" and "'bob'" in unknown.value.message
+        assert unknown.value.code == "not_found" and "'bob'" in unknown.value.message
 
 
 def test_a_local_admin_is_made_only_when_there_is_no_user(tmp_path):
@@ -166,7 +166,7 @@ def test_the_audit_log_never_writes_a_token_or_the_data_path(tmp_path):
 def test_bad_audit_queries_are_invalid(tmp_path, options):
     with pytest.raises(CurvefmError) as error:
         AuditLog(tmp_path).read(**options)
-    assert error.value.kind == "invalid"
+    assert error.value.code == "invalid"
 
 
 def test_two_processes_appending_audit_lines_leave_them_whole(tmp_path):
@@ -185,3 +185,13 @@ def test_two_processes_appending_audit_lines_leave_them_whole(tmp_path):
         mine = [e for e in events if e["user"] == user]
         assert [e["target"] for e in mine] == [str(i) for i in range(300)]
         assert all(e["detail"]["filler"] == user * 4000 for e in mine)
+
+
+@pytest.mark.parametrize("content", ["{not json", '{"version": 99, "users": []}'])
+def test_a_broken_users_file_lets_nobody_in(tmp_path, content):
+    users = UserStore(tmp_path)
+    token = users.add("alice")
+    users.path.write_text(content)
+    with pytest.raises(CurvefmError) as error:
+        users.authenticate(token)
+    assert error.value.code == "internal" and str(tmp_path) not in error.value.message

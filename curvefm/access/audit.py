@@ -20,7 +20,7 @@ from pathlib import Path
 
 from curvefm.access.common import access_dir, timestamp
 from curvefm.access.users import TOKEN_PREFIX
-from curvefm.errors import CurvefmError
+from curvefm.errors import InvalidInput
 
 # Reading goes backwards from the end in blocks of this many bytes, so a short tail of a long log is cheap.
 BLOCK_BYTES = 64 * 1024
@@ -51,7 +51,7 @@ class AuditLog:
 
         Reads the file backwards and stops as soon as it has them. A naive ``since`` is taken as UTC."""
         if not isinstance(limit, int) or limit < 1:
-            raise CurvefmError(f"limit must be a positive integer, got {limit!r}", kind="invalid")
+            raise InvalidInput(f"limit must be a positive integer, got {limit!r}")
         earliest = _since(since)
         events: list[dict] = []
         for event in _events_backwards(self.path):
@@ -78,7 +78,7 @@ def _since(since: datetime | str | None) -> str | None:
         try:
             since = datetime.fromisoformat(since)
         except ValueError:
-            raise CurvefmError(f"since must be an ISO 8601 time, got {since!r}", kind="invalid") from None
+            raise InvalidInput(f"since must be an ISO 8601 time, got {since!r}") from None
     if since.tzinfo is None:
         since = since.replace(tzinfo=UTC)
     return timestamp(since)

@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import TypeVar
 
 from curvefm.access.common import access_dir, timestamp
-from curvefm.errors import CurvefmError
+from curvefm.errors import Conflict, InternalError, InvalidInput, NotFound
 from curvefm.store import atomic_write
 
 TOKEN_PREFIX = "cfm_"
@@ -102,7 +102,7 @@ class UserStore:
 
         def change(records: list[dict]) -> None:
             if _find(records, name) is not None:
-                raise CurvefmError(f"user '{name}' already exists", kind="conflict")
+                raise Conflict(f"user '{name}' already exists")
             records.append(_record(name, admin, token))
 
         self._update(change)
@@ -166,9 +166,12 @@ def _read(path: Path) -> _Snapshot:
     """Parse the file; the key comes from the descriptor that was read, so it always matches the content."""
     with open(path, "rb") as f:
         key = _stat_key(os.fstat(f.fileno()))
-        document = json.loads(f.read())
+        try:
+            document = json.loads(f.read())
+        except json.JSONDecodeError:  # fail closed: nobody is let in through a broken file
+            raise InternalError("the users file is not valid JSON; restore it or re-add the users") from None
     if document.get("version") != FORMAT_VERSION:
-        raise CurvefmError(f"users file format {document.get('version')!r} is not {FORMAT_VERSION}; upgrade curvefm")
+        raise InternalError(f"users file format {document.get('version')!r} is not {FORMAT_VERSION}; upgrade curvefm")
     records = tuple(document["users"])
     return _Snapshot(key=key, records=records, by_hash={r["token_sha256"]: r for r in records})
 
@@ -180,7 +183,7 @@ def _stat_key(stat: os.stat_result) -> tuple[int, int, int]:
 
 def _check_name(name: str) -> None:
     if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name) or set(name) == {"."}:
-        raise CurvefmError(f"bad user name {name!r}: use 1 to 64 letters, digits, '_', '.' or '-'", kind="invalid")
+        raise InvalidInput(f"bad user name {name!r}: use 1 to 64 letters, digits, '_', '.' or '-'")
 
 
 def _find(records: list[dict], name: str) -> dict | None:
@@ -190,7 +193,7 @@ def _find(records: list[dict], name: str) -> dict | None:
 def _existing(records: list[dict], name: str) -> dict:
     record = _find(records, name)
     if record is None:
-        raise CurvefmError(f"no user '{name}'; 'curvefm users list' shows them", kind="not_found")
+        raise NotFound(f"no user '{name}'; 'curvefm users list' shows them")
     return record
 
 
