@@ -14,36 +14,46 @@ from curvefm.errors import InvalidInput, NotFound
 from curvefm.geometry.formats.gltf import read_gltf
 from curvefm.geometry.formats.obj import read_obj, write_obj
 from curvefm.geometry.formats.off import read_off, write_off
-from curvefm.geometry.formats.ply_stl import read_ply_stl, write_ply_stl
+from curvefm.geometry.formats.ply import read_ply
+from curvefm.geometry.formats.ply_stl import write_ply_stl
+from curvefm.geometry.formats.stl import read_stl
 from curvefm.geometry.mesh import Mesh
 
 OPEN3D_FORMATS = {".ply", ".stl"}
+"""Formats open3d writes; every format is read by our own code or trimesh."""
 GLTF_FORMATS = {".glb", ".gltf"}
 SUPPORTED_FORMATS = sorted(OPEN3D_FORMATS | GLTF_FORMATS | {".obj", ".off"})
+READERS = {
+    ".obj": read_obj,
+    ".off": read_off,
+    ".ply": read_ply,
+    ".stl": read_stl,
+    ".glb": read_gltf,
+    ".gltf": read_gltf,
+}
 
 
 def load_mesh(path: str | os.PathLike, name: str | None = None) -> Mesh:
     """Load a mesh, keeping the file's vertex order in every format.
 
-    OBJ is read by our own parser because open3d's OBJ reader reorders vertices (by first use) and splits
-    them at uv seams, which would silently break vertex ids and ground truth.
+    Every reader checks what a header declares against the file's size before allocating for it, streams
+    or views the file so that memory stays a small multiple of its size, and answers a malformed file with a
+    :class:`CurvefmError` naming the file and, for text, the line. OBJ, OFF, PLY and STL are read by our own
+    parsers (open3d's reorders OBJ vertices and allocates whatever a PLY or STL header declares); glTF by
+    trimesh, self-contained files only.
     """
     path = Path(path)
     name = name or path.stem
     suffix = path.suffix.lower()
     if not path.is_file():
         raise NotFound(f"mesh file not found: {path}")
-    if suffix not in SUPPORTED_FORMATS:
+    if suffix not in READERS:
         raise InvalidInput(
             f"unsupported mesh format '{suffix}' for {path.name}; supported: {', '.join(SUPPORTED_FORMATS)}"
         )
-    if suffix == ".obj":
-        return read_obj(path, name)
-    if suffix == ".off":
-        return read_off(path, name)
-    if suffix in GLTF_FORMATS:
-        return read_gltf(path, name)
-    return read_ply_stl(path, name)
+    if path.stat().st_size == 0:
+        raise InvalidInput(f"could not read any vertices from {path.name}: the file is empty")
+    return READERS[suffix](path, name)
 
 
 def save_mesh(mesh: Mesh, path: str | os.PathLike, uv: np.ndarray | None = None) -> None:

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import os
+from typing import NamedTuple
 
 import numpy as np
 from scipy.sparse.csgraph import connected_components
@@ -17,6 +18,15 @@ def max_vertices() -> int:
     return int(os.environ.get("CURVEFM_MAX_VERTICES", 2_000_000))
 
 
+def check_vertex_count(n: int, what: str) -> None:
+    """Refuse more than :func:`max_vertices` vertices; readers call it with a header's count before reading."""
+    if n > max_vertices():
+        raise ResourceLimit(
+            f"{what} {n} vertices, more than the limit of {max_vertices()} "
+            "(set CURVEFM_MAX_VERTICES to change it, or decimate the mesh)",
+        )
+
+
 # ----------------------------------------------------------------------------------------------------------
 # Building and validating
 
@@ -24,7 +34,7 @@ def max_vertices() -> int:
 def build_mesh(vertices, faces, uv=None, *, name: str = "", texture_path: str | None = None) -> Mesh:
     """Validate raw arrays and build a :class:`Mesh`.
 
-    ``faces`` may be an (f, 3) array or a list of polygons; polygons with more than three corners are
+    ``faces`` may be an (f, 3) array, a list of polygons or :class:`Polygons`; polygons with more than three corners are
     triangulated as fans (counted in the report). Faces with fewer than three corners, indices out of range,
     non-finite coordinates and empty meshes are rejected. Degenerate faces (a repeated corner or zero area)
     are removed, then vertices no face uses are dropped with their ids remembered in ``file_ids``.
@@ -71,11 +81,7 @@ def _checked_vertices(vertices, name: str) -> np.ndarray:
         raise InvalidInput(f"mesh '{name}' is empty: it has no vertices")
     if v.ndim != 2 or v.shape[1] != 3:
         raise InvalidInput(f"mesh '{name}': vertices must be an (n, 3) array, got shape {v.shape}")
-    if len(v) > max_vertices():
-        raise ResourceLimit(
-            f"mesh '{name}' has {len(v)} vertices, more than the limit of {max_vertices()} "
-            "(set CURVEFM_MAX_VERTICES to change it, or decimate the mesh)",
-        )
+    check_vertex_count(len(v), f"mesh '{name}' has")
     bad = ~np.isfinite(v).all(axis=1)
     if bad.any():
         raise InvalidInput(
@@ -85,32 +91,54 @@ def _checked_vertices(vertices, name: str) -> np.ndarray:
     return v
 
 
+class Polygons(NamedTuple):
+    """Faces of any sizes without a Python list per face: face ``i`` has ``sizes[i]`` corners, stored back to
+    back in ``corners`` (vertex ids). Readers build one in a few bytes per corner."""
+
+    corners: np.ndarray
+    sizes: np.ndarray
+
+
 def _triangulate(faces, report: MeshReport, name: str) -> np.ndarray:
-    if not isinstance(faces, np.ndarray) and faces is not None and all(len(f) == 3 for f in faces):
-        faces = np.array(faces, dtype=np.int64).reshape(-1, 3)
-    if isinstance(faces, np.ndarray) and faces.ndim == 2 and faces.shape[1] == 3:
-        tris = faces
-    else:
-        faces = list(faces) if faces is not None else []
-        tris_list = []
-        for index, poly in enumerate(faces):
-            poly = list(poly)
-            if len(poly) < 3:
-                raise InvalidInput(
-                    f"mesh '{name}': face {index} has {len(poly)} corners; faces need at least 3 "
-                    "(lines and points are not surfaces)"
-                )
-            if len(poly) > 3:
-                report.triangulated_polygons += 1
-            tris_list.extend([poly[0], poly[i], poly[i + 1]] for i in range(1, len(poly) - 1))
-        tris = np.array(tris_list).reshape(-1, 3)
-    if len(tris) == 0:
+    faces = _as_triangles_or_polygons(faces)
+    if isinstance(faces, Polygons):
+        faces = _fan_triangles(faces, report, name)
+    if len(faces) == 0:
         raise InvalidInput(f"mesh '{name}' has no faces; only triangle (or polygon) meshes are supported")
-    if not np.issubdtype(np.asarray(tris).dtype, np.integer):
+    if not np.issubdtype(faces.dtype, np.integer):
         raise InvalidInput(f"mesh '{name}': face indices must be integers")
     if report.triangulated_polygons:
         report.warnings.append(f"{report.triangulated_polygons} polygons were triangulated as fans")
-    return np.asarray(tris, dtype=np.int64)
+    return faces.astype(np.int64, copy=False)
+
+
+def _as_triangles_or_polygons(faces) -> np.ndarray | Polygons:
+    if isinstance(faces, Polygons):
+        return faces
+    if isinstance(faces, np.ndarray) and faces.ndim == 2:
+        return faces if faces.shape[1] == 3 else Polygons(faces.ravel(), np.full(len(faces), faces.shape[1]))
+    faces = [list(f) for f in faces] if faces is not None else []
+    if all(len(f) == 3 for f in faces):
+        return np.array(faces).reshape(-1, 3)
+    return Polygons(np.array([i for f in faces for i in f]), np.array([len(f) for f in faces], dtype=np.int64))
+
+
+def _fan_triangles(polygons: Polygons, report: MeshReport, name: str) -> np.ndarray:
+    """Polygon ``[c0, c1, ..., ck]`` becomes triangles ``[c0, ci, ci+1]``, in order, without a Python loop."""
+    corners, sizes = polygons
+    short = np.flatnonzero(sizes < 3)
+    if len(short):
+        raise InvalidInput(
+            f"mesh '{name}': face {short[0]} has {sizes[short[0]]} corners; faces need at least 3 "
+            "(lines and points are not surfaces)"
+        )
+    report.triangulated_polygons = int((sizes > 3).sum())
+    if not report.triangulated_polygons:
+        return corners.reshape(-1, 3)
+    per_face = sizes - 2
+    first = np.repeat(np.cumsum(sizes) - sizes, per_face)  # offset of each triangle's polygon in corners
+    step = np.arange(len(first)) - np.repeat(np.cumsum(per_face) - per_face, per_face) + 1
+    return np.column_stack([corners[first], corners[first + step], corners[first + step + 1]])
 
 
 def _check_indices(tris: np.ndarray, n: int, name: str) -> None:

@@ -1,24 +1,78 @@
 """glTF and GLB, read with trimesh (``process=False`` keeps the buffer's vertex order).
+
+Only self-contained files are read: every buffer and image must be inside the file (a ``data:`` URI, or
+the GLB's binary chunk). A ``uri`` naming another file (``mesh.bin``, ``/etc/passwd``, ``../x``) is refused
+before trimesh sees the file, and trimesh is given the bytes, not the path, so it cannot open anything else.
+Accessor counts of vertex positions are checked against the vertex limit first; trimesh only views buffers
+that exist, so a count larger than its buffer costs nothing and is refused by trimesh.
 """
 
 from __future__ import annotations
 
+import io
+import json
+import struct
 from pathlib import Path
 
 import numpy as np
 
 from curvefm.errors import InvalidInput
 from curvefm.geometry.mesh import Mesh
-from curvefm.geometry.validation import build_mesh
+from curvefm.geometry.validation import build_mesh, check_vertex_count
+
+GLB_MAGIC, GLB_JSON = b"glTF", b"JSON"
 
 
 def read_gltf(path: Path, name: str) -> Mesh:
+    data = path.read_bytes()
+    _check_document(_document(data, path), path)
     # open3d's glTF reader (assimp) reorders vertices; trimesh with process=False keeps the buffer order
     import trimesh
 
     try:
-        scene = trimesh.load(path, process=False, force="mesh")
+        scene = trimesh.load(io.BytesIO(data), file_type=path.suffix[1:].lower(), process=False, force="mesh")
     except Exception as exc:  # trimesh raises many types for broken files
         raise InvalidInput(f"could not read {path.name} as glTF: {exc}") from None
     uv = getattr(scene.visual, "uv", None)
     return build_mesh(np.asarray(scene.vertices), np.asarray(scene.faces), uv, name=name)
+
+
+def _document(data: bytes, path: Path) -> dict:
+    """The JSON part: the whole of a .gltf, the first chunk of a .glb (whose header is checked)."""
+    text = data
+    if path.suffix.lower() == ".glb":
+        if data[:4] != GLB_MAGIC or len(data) < 20:
+            raise InvalidInput(f"{path.name} is not a GLB file: it does not start with 'glTF'")
+        _, length, chunk, kind = struct.unpack_from("<4I", data, 4)
+        if length != len(data) or kind != int.from_bytes(GLB_JSON, "little") or 20 + chunk > len(data):
+            raise InvalidInput(f"{path.name} is not a valid GLB file: its header does not match its size")
+        text = data[20 : 20 + chunk]
+    try:
+        document = json.loads(text)
+    except (ValueError, RecursionError) as exc:  # UnicodeDecodeError is a ValueError
+        raise InvalidInput(f"could not read {path.name} as glTF: its JSON is invalid ({exc})") from None
+    if not isinstance(document, dict):
+        raise InvalidInput(f"could not read {path.name} as glTF: its JSON is not an object")
+    return document
+
+
+def _check_document(document: dict, path: Path) -> None:
+    try:
+        for kind in ("buffers", "images"):
+            for i, item in enumerate(document.get(kind, [])):
+                uri = item.get("uri", "data:")
+                if not (isinstance(uri, str) and uri.startswith("data:")):
+                    raise InvalidInput(
+                        f"{path.name} refers to another file ({kind} {i}: '{str(uri)[:80]}'); only self-contained "
+                        "glTF is accepted: embed the data (data: URIs) or upload a .glb"
+                    )
+        accessors = document.get("accessors", [])
+        positions = sum(
+            int(accessors[p["attributes"]["POSITION"]]["count"])
+            for mesh in document.get("meshes", [])
+            for p in mesh["primitives"]
+            if "POSITION" in p.get("attributes", {})
+        )
+    except (AttributeError, TypeError, KeyError, IndexError, ValueError):
+        raise InvalidInput(f"could not read {path.name} as glTF: its JSON does not have the glTF structure") from None
+    check_vertex_count(positions, f"{path.name} declares")
