@@ -234,8 +234,11 @@ CASES = [
     ("huge_triangle_count.stl", stl_binary(TRIANGLE, count=2_000_000_000), reject("not an STL file", huge=True)),
     # bytes 80-84 of this ASCII STL read as a binary count of 2,021,161,080 triangles: it must be read as text
     ("huge_count_in_ascii_stl_header.stl", stl_ascii(TRIANGLE).replace(b"corpus", b"x" * 90), accept(3, 1)),
-    ("huge_position_count.gltf", gltf(gltf_document(count=1_000_000_000)),
-     reject("more than the limit", "too_large", huge=True)),
+    ("huge_position_count.gltf", gltf(gltf_document(count=1_000_000_000)), reject("the file is shorter", huge=True)),
+    ("huge_accessor_without_buffer.gltf", gltf({**gltf_document(), "accessors": [
+        *gltf_document()["accessors"], {"componentType": 5126, "count": 8_000_000_000, "type": "MAT4"}]}),
+     reject("the file is shorter", huge=True)),
+    ("accessor_count_infinite.gltf", gltf(gltf_document(count=float("inf"))), reject("glTF structure")),
     ("huge_element_count.ply", ply_ascii(header="element edge 4000000000\nproperty int a\n"),
      reject("the file is shorter", huge=True)),
     # an OFF, OBJ, PLY, STL or glTF under another format's extension

@@ -236,7 +236,8 @@ def _binary_body(data: bytes, path: Path, header: _Header) -> tuple[np.ndarray, 
         )
     vertex = found["vertex"]
     faces = next(v for n, v in found["face"].items() if n in FACE_LISTS)
-    return np.column_stack([vertex[n] for n in XYZ]).astype(np.float64), faces
+    with np.errstate(invalid="ignore"):  # a signalling NaN warns when widened; validation refuses it
+        return np.column_stack([vertex[n] for n in XYZ]).astype(np.float64), faces
 
 
 def _fixed_records(data: bytes, at: int, element: _Element, endian: str):
