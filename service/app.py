@@ -16,6 +16,7 @@ from curvefm.service.errors import error_response, error_responses, install_erro
 from curvefm.service.hints import install_hints
 from curvefm.service.settings import Settings
 from curvefm.service.ui import mount_ui
+from curvefm.workers.factory import check_redis
 
 DESCRIPTION = """Interactive curve-constrained functional maps between 3D shapes.
 
@@ -88,4 +89,6 @@ def serve_main(
 
     logging.basicConfig(level=log_level.upper(), format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     settings = Settings.from_env(data_dir=data_dir, redis_url=redis_url, demo=demo, max_upload_bytes=max_upload_bytes)
+    if settings.redis_url:
+        check_redis(settings.redis_url)  # a wrong password is one line (exit 2), not a traceback at startup
     uvicorn.run(create_app(settings), host=host, port=port, log_level=log_level)

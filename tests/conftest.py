@@ -2,11 +2,13 @@
 
 import contextlib
 import os
+import shutil
 import signal
 import socket
 import subprocess
 import sys
 import time
+import uuid
 from pathlib import Path
 from typing import NoReturn
 
@@ -67,8 +69,6 @@ def redis_url() -> str:
 def redis_prefix(redis_url: str):
     """A queue-name prefix of this test only; afterwards every Redis key of it (queues, registries, jobs,
     workers, our own keys) is deleted, and nothing else is touched."""
-    import uuid
-
     import redis
 
     prefix = f"cfmtest-{uuid.uuid4().hex[:10]}-"
@@ -224,3 +224,51 @@ def module_processes(tmp_path_factory):
     runner = Processes(tmp_path_factory.mktemp("processes"))
     yield runner
     runner.stop_all()
+
+
+class RedisServer:
+    """A redis-server of one test, on a free port (never the shared Redis, which other tests use): it can be
+    stopped, and restarted empty as docker-compose's Redis without persistence would be."""
+
+    def __init__(self, folder: Path, password: str | None = None):
+        self.folder, self.password, self.port = folder, password, free_port()
+        self.process: subprocess.Popen | None = None
+
+    def url(self, password: str | None = None) -> str:
+        """The URL with this server's password, or with ``password`` ("" for none)."""
+        password = self.password if password is None else password
+        return f"redis://{f':{password}@' if password else ''}127.0.0.1:{self.port}/0"
+
+    def start(self) -> None:
+        args = ["redis-server", "--port", str(self.port), "--bind", "127.0.0.1", "--save", "", "--appendonly", "no"]
+        args += ["--dir", str(self.folder)] + (["--requirepass", self.password] if self.password else [])
+        log = open(self.folder / f"redis-{self.port}.log", "ab")  # noqa: SIM115  (the child holds it)
+        self.process = subprocess.Popen(args, stdout=log, stderr=subprocess.STDOUT)
+        import redis
+
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline:
+            try:
+                redis.Redis.from_url(self.url(), socket_connect_timeout=1).ping()
+                return
+            except redis.RedisError:
+                time.sleep(0.05)
+        raise AssertionError(f"redis-server on port {self.port} did not answer within 20 s")
+
+    def stop(self) -> None:
+        """SIGKILL: nothing is saved, as a crashed or recreated Redis container without persistence."""
+        if self.process is not None:
+            self.process.kill()
+            self.process.wait(timeout=30)
+            self.process = None
+
+
+@pytest.fixture
+def private_redis(tmp_path: Path):
+    """A password-protected redis-server of this test only (see :class:`RedisServer`)."""
+    if shutil.which("redis-server") is None:
+        unavailable("redis-server is not installed (scripts/setup.sh installs Debian's redis-server)")
+    server = RedisServer(tmp_path, password=f"pw-{uuid.uuid4().hex[:12]}")
+    server.start()
+    yield server
+    server.stop()

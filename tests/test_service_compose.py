@@ -1,31 +1,73 @@
-"""docker-compose.yml is valid for Debian's docker-compose 1.29 and runs the commands the other tests run."""
+"""docker-compose.yml is valid for Debian's docker-compose 1.29, runs the commands the other tests run, gives
+Redis a password from the env file that the API and the workers connect with, and publishes the API on the
+host's loopback only."""
 
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 from pathlib import Path
 
+import pytest
 import yaml
 from conftest import unavailable
 
 REPO = Path(__file__).resolve().parents[1]
+PASSWORD = "0123456789abcdef0123456789abcdef"
 
 
-def test_compose_file_is_valid_and_runs_the_tested_commands(processes):
+def compose_config(env_file: Path | None) -> subprocess.CompletedProcess:
     binary = shutil.which("docker-compose")
     if binary is None:
         unavailable("docker-compose is not installed (scripts/setup.sh installs Debian's)")
-    result = subprocess.run(
-        [binary, "-f", str(REPO / "docker-compose.yml"), "config"], capture_output=True, text=True, cwd=REPO
-    )
+    env = {k: v for k, v in os.environ.items() if not k.startswith("CURVEFM_")}  # only the env file counts
+    options = ["--env-file", str(env_file)] if env_file else []
+    command = [binary, *options, "-f", str(REPO / "docker-compose.yml"), "config"]
+    return subprocess.run(command, capture_output=True, text=True, cwd=env_file.parent if env_file else REPO, env=env)
+
+
+@pytest.fixture
+def services(tmp_path) -> dict:
+    """The resolved services, with .env.example copied and its password filled in (as the README says)."""
+    example = (REPO / ".env.example").read_text()
+    assert "\nCURVEFM_REDIS_PASSWORD=\n" in example, "the example must leave the password to the admin"
+    env_file = tmp_path / ".env"
+    env_file.write_text(example.replace("\nCURVEFM_REDIS_PASSWORD=\n", f"\nCURVEFM_REDIS_PASSWORD={PASSWORD}\n"))
+    result = compose_config(env_file)
     assert result.returncode == 0, result.stderr
     assert "WARNING" not in result.stderr, result.stderr
+    return yaml.safe_load(result.stdout)["services"]
 
-    services = yaml.safe_load(result.stdout)["services"]
+
+def test_compose_file_is_valid_and_runs_the_tested_commands(services, processes):
     assert services["api"]["command"][:3] == processes.api_command
     assert services["worker"]["command"][:3] == processes.worker_command
     for name in ("api", "worker"):
         assert "data:/data:rw" in services[name]["volumes"]
-        assert services[name]["environment"]["CURVEFM_REDIS_URL"].startswith("redis://redis:")
     assert "ports" not in services["worker"] and "container_name" not in services["worker"]  # --scale works
+
+
+def test_redis_needs_the_password_from_the_env_file_and_the_api_and_workers_use_it(services):
+    redis = services["redis"]
+    assert redis["command"][redis["command"].index("--requirepass") + 1] == PASSWORD
+    assert PASSWORD in redis["healthcheck"]["test"]
+    assert "ports" not in redis
+    for name in ("api", "worker"):
+        assert services[name]["environment"]["CURVEFM_REDIS_URL"] == f"redis://:{PASSWORD}@redis:6379/0"
+
+
+def test_the_env_file_is_ignored_by_git_and_its_example_is_not():
+    checks = [subprocess.run(["git", "check-ignore", "-q", name], cwd=REPO) for name in (".env", ".env.example")]
+    assert [check.returncode for check in checks] == [0, 1]
+
+
+def test_without_a_password_compose_refuses_to_run_and_says_which_setting(tmp_path):
+    (tmp_path / ".env").write_text((REPO / ".env.example").read_text())
+    result = compose_config(tmp_path / ".env")
+    assert result.returncode != 0
+    assert "CURVEFM_REDIS_PASSWORD must be set" in result.stderr, result.stderr
+
+
+def test_the_api_is_published_on_the_loopback_address_only(services):
+    assert services["api"]["ports"] == ["127.0.0.1:8000:8000/tcp"]

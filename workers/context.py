@@ -56,7 +56,7 @@ def _current_execution_id(rq_job) -> str:
     before it forks the work horse)."""
     from rq.registry import StartedJobRegistry
 
-    registry = StartedJobRegistry(rq_job.origin, connection=rq_job.connection)
+    registry = StartedJobRegistry(rq_job.origin, connection=rq_job.connection, serializer=rq_job.serializer)
     ids = [e for j, e in registry.get_job_and_execution_ids(cleanup=False) if j == rq_job.id]
     return max(ids, key=lambda e: execution_created_at(rq_job.connection, rq_job.id, e) or 0.0, default="")
 

@@ -17,6 +17,12 @@ def make_queue(redis_url: str | None, prefix: str = "", retries: int = 1, embedd
     from curvefm.workers.rq_queue import RQQueue  # needs redis and rq, which embedded mode does without
 
     queue = RQQueue(redis_url, prefix=prefix, retries=retries)
-    queue.ping()
     queue.start_reaper(API_REAP_INTERVAL_S)
     return queue
+
+
+def check_redis(redis_url: str) -> None:
+    """Raise a one-line error now if the Redis at ``redis_url`` does not answer or refuses its password."""
+    from curvefm.workers.connection import connect
+
+    connect(redis_url).close()

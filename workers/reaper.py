@@ -52,7 +52,7 @@ def _reap_queue(connection: Redis, queue: Queue) -> list[str]:
         if _is_abandoned(connection, job_id, execution_id)
     ]
     for job_id, execution_id in abandoned:
-        _note_abandoned(connection, job_id)
+        _note_abandoned(connection, queue, job_id)
         connection.zadd(registry.key, {f"{job_id}:{execution_id}": 1}, xx=True)  # expire it now
     if abandoned:
         registry.cleanup()
@@ -68,8 +68,8 @@ def _is_abandoned(connection: Redis, job_id: str, execution_id: str) -> bool:
     return created is None or time.time() - created > STARTUP_GRACE_S
 
 
-def _note_abandoned(connection: Redis, job_id: str) -> None:
-    job = Job.fetch(job_id, connection=connection)
+def _note_abandoned(connection: Redis, queue: Queue, job_id: str) -> None:
+    job = Job.fetch(job_id, connection=connection, serializer=queue.serializer)
     retrying = bool(job.retries_left)
     job.meta["message"] = f"worker {job.worker_name or '?'} died mid-job; " + (
         f"queued again ({job.retries_left - 1} retries left after this one)" if retrying else "no retries left"

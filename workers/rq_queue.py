@@ -1,10 +1,11 @@
 """Jobs on RQ (Redis Queue): enqueueing, status, cancelling, and why a job failed.
 
 Queue names are ``<prefix>curvefm-basis`` and ``<prefix>curvefm-refine`` (``CURVEFM_QUEUE_PREFIX``, empty by
-default, lets several deployments or test runs share one Redis). A plain ``rq worker`` on those queues runs
-the jobs too. Every job carries :func:`record_failure` as its RQ failure callback: a failed job's kind and
-message are data in ``job.meta["failure"]``, never read back from traceback text. Jobs whose worker died are
-handled by :mod:`curvefm.workers.reaper`.
+default, lets several deployments or test runs share one Redis). Everything crosses Redis as JSON
+(:data:`curvefm.workers.connection.SERIALIZER`): workers must use it too, as ``curvefm worker`` does. Every
+job carries :func:`record_failure` as its RQ failure callback: a failed job's kind and message are data in
+``job.meta["failure"]``, never read back from traceback text. Jobs whose worker died are handled by
+:mod:`curvefm.workers.reaper`.
 """
 
 from __future__ import annotations
@@ -17,13 +18,13 @@ from dataclasses import asdict, replace
 from datetime import UTC, datetime
 
 from redis import Redis
-from redis.exceptions import RedisError
 from rq import Callback, Queue, Retry
 from rq.command import send_stop_job_command
 from rq.exceptions import AbandonedJobError, InvalidJobOperation, NoSuchJobError
 from rq.job import Job, JobStatus
 
-from curvefm.errors import CurvefmError, InvalidInput
+from curvefm.errors import CurvefmError
+from curvefm.workers.connection import SERIALIZER, connect
 from curvefm.workers.interface import (
     ENDED_STATES,
     JOB_KINDS,
@@ -64,18 +65,14 @@ class RQQueue(JobQueue):
     mode = "redis"
 
     def __init__(self, redis_url: str, prefix: str = "", retries: int = 1):
-        self.connection = Redis.from_url(redis_url)
+        self.connection = connect(redis_url)
         self.retries = retries
-        self.queues = {kind: Queue(name, connection=self.connection) for kind, name in queue_names(prefix).items()}
+        self.queues = {
+            kind: Queue(name, connection=self.connection, serializer=SERIALIZER)
+            for kind, name in queue_names(prefix).items()
+        }
         self._dedupe_prefix = f"curvefm:{prefix}dedupe:"
         self._stop_reaper: threading.Event | None = None
-
-    def ping(self) -> None:
-        """Raise :class:`~curvefm.errors.InvalidInput` (a setting to fix) when Redis does not answer."""
-        try:
-            self.connection.ping()
-        except RedisError as exc:
-            raise InvalidInput(f"cannot reach Redis at {self._url()}: {exc}") from None
 
     def start_reaper(self, interval_s: float) -> None:
         """Hand jobs of dead workers to RQ's retry-or-fail handling every ``interval_s``, until :meth:`close`."""
@@ -142,7 +139,7 @@ class RQQueue(JobQueue):
         if not _JOB_ID.match(job_id):
             raise unknown_job(job_id)
         try:
-            return Job.fetch(job_id, connection=self.connection)
+            return Job.fetch(job_id, connection=self.connection, serializer=SERIALIZER)
         except NoSuchJobError:
             raise unknown_job(job_id) from None
 
@@ -168,11 +165,6 @@ class RQQueue(JobQueue):
             started_at=_timestamp(job.started_at),
             ended_at=_timestamp(job.ended_at),
         )
-
-    def _url(self) -> str:
-        """Where Redis is, without the password a URL may hold."""
-        kwargs = self.connection.connection_pool.connection_kwargs
-        return f"{kwargs.get('host', '?')}:{kwargs.get('port', '?')}/{kwargs.get('db', 0)}"
 
 
 def record_failure(job: Job, connection: Redis, exc_type, exc: BaseException, tb) -> None:
