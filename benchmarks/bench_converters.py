@@ -91,7 +91,7 @@ def session_record(store: Store, result: MatchResult, curves) -> dict:
 
 def run_worker_job(store: Store, result: MatchResult, curves, truth) -> dict:
     """``rhm`` (defaults) as a refine job on the in-process queue, polled like the API polls it."""
-    queue = EmbeddedQueue(max_workers=1)
+    queue = EmbeddedQueue(store.root, max_workers=1)
     kwargs = {"data_dir": str(store.root), "session": session_record(store, result, curves), "converter": "rhm"}
     start = time.perf_counter()
     try:

@@ -9,6 +9,7 @@ statuses are chosen in :mod:`curvefm.service.errors`, not here.
 * :class:`Conflict`: the request is well formed but the state does not allow it (e.g. bases not computed yet).
 * :class:`ResourceLimit`: the input is larger than a configured limit.
 * :class:`InternalError`: our failure, not the user's (an eigensolver or LAPACK failure, a non-finite result).
+* :class:`Unavailable`: something the request needs (the job queue's Redis) does not answer now; try again later.
 """
 
 
@@ -43,3 +44,7 @@ class ResourceLimit(CurvefmError):
 
 class InternalError(CurvefmError):
     code = "internal"
+
+
+class Unavailable(CurvefmError):
+    code = "unavailable"

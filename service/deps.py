@@ -8,13 +8,16 @@ from typing import Annotated
 
 from fastapi import Depends, Request
 
-from curvefm.service.errors import require_plugin
+from curvefm.service.errors import error_responses, require_plugin
 from curvefm.service.models import JobInfoModel
 from curvefm.service.settings import Settings
 from curvefm.session import LiveSessions, SessionEditor, SessionStore
 from curvefm.store import Store, params_key
 from curvefm.workers.factory import make_queue
 from curvefm.workers.interface import JobInfo, JobQueue
+
+JOB_ERRORS = error_responses(503)
+"""What every route that reaches the job queue may answer besides its own errors: its Redis does not answer."""
 
 
 @dataclass
@@ -36,7 +39,9 @@ class Services:
 
 def start_services(settings: Settings) -> Services:
     store = Store(settings.data_dir)
-    queue = make_queue(settings.redis_url, settings.queue_prefix, settings.job_retries, settings.embedded_workers)
+    queue = make_queue(
+        settings.redis_url, store.root, settings.queue_prefix, settings.job_retries, settings.embedded_workers
+    )
     records = SessionStore(store.root)
     live = LiveSessions(store, records)
     sessions = SessionEditor(records, live, find_plugin=require_plugin)  # its errors list the installed plugins

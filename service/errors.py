@@ -2,6 +2,7 @@
 
 A body is ``{"error": code, "detail": message, ...}`` (:class:`curvefm.service.models.ErrorBody`). An internal
 error answers 500 with an ``error_id`` and one readable line; its traceback goes to the server log under that id.
+Something the request needs that does not answer now (the job queue's Redis) is a 503 with ``Retry-After``.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException
 
 from curvefm import registry
-from curvefm.errors import Conflict, CurvefmError, InternalError, InvalidInput, NotFound, ResourceLimit
+from curvefm.errors import Conflict, CurvefmError, InternalError, InvalidInput, NotFound, ResourceLimit, Unavailable
 from curvefm.registry import Plugin
 from curvefm.service.models import ErrorBody
 
@@ -28,9 +29,12 @@ STATUS: dict[type[CurvefmError], int] = {
     Conflict: 409,
     ResourceLimit: 413,
     InternalError: 500,
+    Unavailable: 503,
 }
 CODE = {status: cls.code for cls, status in STATUS.items()}
 """The ``error`` code of a status (for the framework's own errors: unknown paths, methods not allowed)."""
+RETRY_AFTER_S = 5
+"""What a 503 asks a client to wait before trying again."""
 
 
 class UnknownPlugin(InvalidInput):
@@ -60,12 +64,13 @@ def error_responses(*statuses: int) -> dict[int | str, dict]:
 
 
 def error_response(exc: CurvefmError, detail: str | None = None) -> JSONResponse:
-    """The JSON answer to a user's error (4xx), its message or ``detail``; internal errors go through
-    :func:`internal_error_response`."""
+    """The JSON answer to a user's error (4xx) or to an unavailable dependency (503), its message or
+    ``detail``; internal errors go through :func:`internal_error_response`."""
     body = {"error": exc.code, "detail": detail or exc.message}
     if isinstance(exc, UnknownPlugin):
         body["available"] = exc.available
-    return JSONResponse(body, status_code=status_of(exc))
+    headers = {"Retry-After": str(RETRY_AFTER_S)} if isinstance(exc, Unavailable) else None
+    return JSONResponse(body, status_code=status_of(exc), headers=headers)
 
 
 def internal_error_response(request: Request, exc: Exception) -> JSONResponse:
@@ -80,7 +85,7 @@ def internal_error_response(request: Request, exc: Exception) -> JSONResponse:
 def install_error_handlers(app: FastAPI) -> None:
     @app.exception_handler(CurvefmError)
     async def curvefm_error(request: Request, exc: CurvefmError) -> JSONResponse:
-        if status_of(exc) >= 500:
+        if isinstance(exc, InternalError):
             return internal_error_response(request, exc)
         return error_response(exc)
 

@@ -21,7 +21,7 @@ class FieldProblem(BaseModel):
 
 
 class ErrorBody(BaseModel):
-    error: str = Field(description="invalid, not_found, conflict, too_large or internal")
+    error: str = Field(description="invalid, not_found, conflict, too_large, internal or unavailable")
     detail: str = Field(description="what was wrong and what to do")
     available: list[str] | None = Field(None, description="installed plugins of the kind asked for")
     fields: list[FieldProblem] | None = Field(None, description="each field that failed validation (422)")

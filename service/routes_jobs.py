@@ -9,19 +9,28 @@ from fastapi.responses import FileResponse
 
 from curvefm import registry
 from curvefm.errors import NotFound
-from curvefm.service.deps import ServicesDep, job_model
+from curvefm.service.deps import JOB_ERRORS, ServicesDep, job_model
 from curvefm.service.errors import error_responses
 from curvefm.service.models import JobInfoModel
 
 router = APIRouter()
-ERRORS = error_responses(404, 409, 422)
+ERRORS = {**error_responses(404, 409, 422), **JOB_ERRORS}
 _SAFE_NAME = re.compile(r"^[A-Za-z0-9_-][A-Za-z0-9_.-]{0,127}$")
 
 
 @router.get("/jobs/{job_id}", response_model=JobInfoModel, responses=ERRORS, tags=["jobs"])
 def get_job(job_id: str, services: ServicesDep) -> JobInfoModel:
-    """State, progress (0..1 with a message), links to results, or why the job failed (a kind and one line)."""
+    """State, progress (0..1 with a message), links to results, or why the job failed (a kind and one line).
+    ``lost``: the queue lost the job (its Redis restarted empty, or the service restarted while running it
+    in-process); ``message`` says so, and ``POST /jobs/{id}/retry`` runs it again."""
     return job_model(services.queue.get(job_id))
+
+
+@router.post("/jobs/{job_id}/retry", status_code=202, response_model=JobInfoModel, responses=ERRORS, tags=["jobs"])
+def retry_job(job_id: str, services: ServicesDep) -> JobInfoModel:
+    """Run a lost, failed or canceled job again (same kind, arguments and owner) and answer the new job;
+    any other state answers 409. Retrying again while the new job is queued or running answers that job."""
+    return job_model(services.queue.retry(job_id))
 
 
 @router.delete("/jobs/{job_id}", response_model=JobInfoModel, responses=ERRORS, tags=["jobs"])
@@ -45,6 +54,8 @@ def list_plugins() -> dict[str, list[dict]]:
     return registry.describe_all()
 
 
-@router.get("/health", tags=["service"])
+@router.get("/health", tags=["service"], responses=JOB_ERRORS)
 def health(services: ServicesDep) -> dict:
-    return {"status": "ok", "jobs": services.queue.mode, "data_dir": str(services.store.root)}
+    """``ok`` and how jobs run (``embedded`` or ``redis``); 503 while the job queue's Redis does not answer."""
+    services.queue.check()
+    return {"status": "ok", "jobs": services.queue.mode}

@@ -7,7 +7,7 @@ from typing import Annotated
 from fastapi import APIRouter, Query, Response
 
 from curvefm.errors import Conflict, InvalidInput
-from curvefm.service.deps import ServicesDep, job_model
+from curvefm.service.deps import JOB_ERRORS, ServicesDep, job_model
 from curvefm.service.errors import error_responses, require_plugin
 from curvefm.service.models import CurveEdit, JobInfoModel, MapResponse, RefineRequest, SessionSummary
 from curvefm.session import CurveSpec, SessionCreate, SessionRecord, TransferFunction
@@ -89,7 +89,9 @@ def get_transfer(
     return Response(values.astype("<f4").tobytes(), media_type="application/octet-stream", headers=headers)
 
 
-@router.post("/sessions/{session_id}/refine", status_code=202, response_model=JobInfoModel, responses=ERRORS)
+@router.post(
+    "/sessions/{session_id}/refine", status_code=202, response_model=JobInfoModel, responses={**ERRORS, **JOB_ERRORS}
+)
 def refine(session_id: str, body: RefineRequest, services: ServicesDep) -> JobInfoModel:
     """Queue pointwise maps both ways for the session's curves as they are now. The finished job links
     ``map_target_to_source.txt`` (line j: source vertex for target vertex j, file ids), the other direction,

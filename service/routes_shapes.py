@@ -13,7 +13,7 @@ from fastapi import APIRouter, File, Form, Response, UploadFile
 
 from curvefm.errors import CurvefmError, InvalidInput, ResourceLimit
 from curvefm.geometry import SUPPORTED_FORMATS, Mesh, load_mesh, texture_coordinates
-from curvefm.service.deps import Services, ServicesDep, job_model, submit_basis
+from curvefm.service.deps import JOB_ERRORS, Services, ServicesDep, job_model, submit_basis
 from curvefm.service.errors import error_responses, require_plugin
 from curvefm.service.models import BasisInfo, BasisRequest, JobInfoModel, ShapeInfo
 from curvefm.spectral import check_k
@@ -82,7 +82,9 @@ def get_shape_mesh(shape_id: str, services: ServicesDep, format: Literal["binary
     return Response(encode_mesh(mesh), media_type="application/octet-stream")
 
 
-@router.post("/shapes/{shape_id}/bases", status_code=202, response_model=JobInfoModel, responses=ERRORS)
+@router.post(
+    "/shapes/{shape_id}/bases", status_code=202, response_model=JobInfoModel, responses={**ERRORS, **JOB_ERRORS}
+)
 def request_basis(shape_id: str, body: BasisRequest, services: ServicesDep) -> JobInfoModel:
     """Queue the basis computation. While the same request (shape, plugin, k, parameters) is queued or
     running, the same job is returned; if the basis already exists, the job finishes at once."""

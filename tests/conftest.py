@@ -116,7 +116,7 @@ class Api:
         session = self.client.post("/sessions", json={"source": ids[0], "target": ids[1], "k": k})
         return ids, session.raise_for_status().json()["id"]
 
-    def wait_job(self, job_id: str, timeout: float = 120, until=("finished", "failed", "canceled")) -> dict:
+    def wait_job(self, job_id: str, timeout: float = 120, until=("finished", "failed", "canceled", "lost")) -> dict:
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             info = self.client.get(f"/jobs/{job_id}").raise_for_status().json()

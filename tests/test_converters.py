@@ -126,7 +126,7 @@ def test_refine_job_runs_rhm_with_progress_through_the_job_api(faust, store):
         alpha=DEFAULT_ALPHA, samples=DEFAULT_SAMPLES, tracer="geodesic", basis_plugin="laplace-beltrami",
         basis_params={"laplacian": "cotangent"}, curves=curves, created_at=time.time(), updated_at=time.time(),
     )  # fmt: skip
-    queue = EmbeddedQueue(max_workers=1)
+    queue = EmbeddedQueue(store.root, max_workers=1)
     try:
         kwargs = {"data_dir": str(store.root), "session": record.model_dump(), "converter": "rhm", "params": SHORT_RHM}
         job_id = queue.submit("refine", kwargs).id

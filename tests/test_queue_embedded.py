@@ -26,8 +26,8 @@ def mesh_id(store) -> str:
 
 
 @pytest.fixture
-def queue():
-    queue = EmbeddedQueue(max_workers=1)
+def queue(store):
+    queue = EmbeddedQueue(store.root, max_workers=1)
     yield queue
     queue.close()
 
@@ -84,3 +84,27 @@ def test_unknown_and_ended_jobs_are_typed_errors(store, queue):
     assert info.state == "failed"
     with pytest.raises(Conflict, match="already failed"):
         queue.cancel(info.id)
+
+
+def test_jobs_of_a_stopped_executor_are_lost_and_retried_by_the_next(store, mesh_id):
+    stopped = EmbeddedQueue(store.root, max_workers=1)
+    running = stopped.submit("basis", basis_job(store, mesh_id, 80), owner="ada")
+    waiting = stopped.submit("basis", basis_job(store, mesh_id, 20))
+    wait(stopped, running.id, states=("started",))
+    stopped.close()
+    for job in (running, waiting):
+        assert stopped.get(job.id).state == "lost" and "the service stopped" in stopped.get(job.id).message
+
+    queue = EmbeddedQueue(store.root, max_workers=1)  # the next process on the same data directory
+    try:
+        lost = queue.get(running.id)
+        assert (lost.state, lost.owner) == ("lost", "ada") and "while the job was running" in lost.message
+        assert "while the job was queued" in queue.get(waiting.id).message
+        retry = queue.retry(waiting.id)
+        assert retry.id != waiting.id and queue.retry(waiting.id).id == retry.id  # one retry while it runs
+        assert wait(queue, retry.id).result["k"] == 20
+        with pytest.raises(Conflict, match="only a lost, failed or canceled job"):
+            queue.retry(retry.id)
+        assert queue.retry(running.id).owner == "ada"
+    finally:
+        queue.close()

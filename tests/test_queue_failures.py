@@ -13,15 +13,15 @@ from curvefm.workers.jobs import JOB_FUNCTIONS
 
 
 @pytest.fixture(params=["embedded", "redis"])
-def queue(request) -> JobQueue:
+def queue(request, tmp_path) -> JobQueue:
     if request.param == "embedded":
-        queue = EmbeddedQueue(max_workers=1)
+        queue = EmbeddedQueue(tmp_path, max_workers=1)
     else:
         from curvefm.workers.rq_queue import RQQueue
 
         redis_url, prefix = request.getfixturevalue("redis_url"), request.getfixturevalue("redis_prefix")
         request.getfixturevalue("processes").worker(redis_url, prefix, "w1")
-        queue = RQQueue(redis_url, prefix=prefix, retries=0)
+        queue = RQQueue(redis_url, tmp_path, prefix=prefix, retries=0)
     yield queue
     queue.close()
 

@@ -53,6 +53,8 @@ def test_redis_needs_the_password_from_the_env_file_and_the_api_and_workers_use_
     assert redis["command"][redis["command"].index("--requirepass") + 1] == PASSWORD
     assert PASSWORD in redis["healthcheck"]["test"]
     assert "ports" not in redis
+    assert redis["command"][redis["command"].index("--appendonly") + 1] == "yes"  # issue 12: jobs survive restarts
+    assert "redis-data:/data:rw" in redis["volumes"]
     for name in ("api", "worker"):
         assert services[name]["environment"]["CURVEFM_REDIS_URL"] == f"redis://:{PASSWORD}@redis:6379/0"
 

@@ -161,6 +161,10 @@ def test_errors_are_shown_and_the_page_stays_usable(page, demo):
     page.click("#refine-button")
     page.wait_for_selector("#refine-progress .progress-row.failed:has-text('worker exploded')")
     page.unroute("**/jobs/*")
+    page.route("**/jobs/*", lambda route: route.fulfill(json=lost_job()))
+    page.click("#refine-button")
+    page.wait_for_selector("#refine-progress .progress-row.failed:has-text('the service restarted')")
+    page.unroute("**/jobs/*")
     assert page.is_enabled("#refine-button")
 
     for pattern in ("**/sessions/**", "**/health"):
@@ -191,6 +195,11 @@ def failed_job() -> dict:
         "error": {"kind": "internal", "message": "worker exploded"},
         "links": {},
     }
+
+
+def lost_job() -> dict:
+    reason = "the service restarted while the job was running; retry it (POST /jobs/mocked/retry)"
+    return {**failed_job(), "state": "lost", "message": reason, "error": None}
 
 
 def test_mount_ui_names_a_missing_three_js(tmp_path, monkeypatch):

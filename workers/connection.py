@@ -11,7 +11,7 @@ from redis.exceptions import TimeoutError as RedisTimeoutError
 from redis.retry import Retry
 from rq.serializers import JSONSerializer
 
-from curvefm.errors import InvalidInput
+from curvefm.errors import InvalidInput, Unavailable
 from curvefm.workers.interface import one_line
 
 SERIALIZER = JSONSerializer
@@ -33,7 +33,7 @@ def connect(url: str, worker: bool = False) -> Redis:
     except AuthenticationError:
         raise InvalidInput(password_problem(connection)) from None
     except UNREACHABLE as exc:
-        raise InvalidInput(f"cannot reach Redis at {location(connection)}: {one_line(str(exc))}") from None
+        raise Unavailable(f"cannot reach Redis at {location(connection)}: {one_line(str(exc))}") from None
     return connection
 
 

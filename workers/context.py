@@ -5,12 +5,14 @@ worker this reports progress in ``job.meta`` and keeps a short-lived "alive" key
 killed mid-job is noticed within seconds (see :mod:`curvefm.workers.reaper`). The key names the attempt
 (RQ's execution id), so a stale key of an earlier attempt never vouches for a later one. Under the embedded executor it
 uses the executor's callback (which raises :class:`curvefm.progress.Cancelled` once the job is cancelled).
-Called directly, outside any queue, it reports nowhere.
+Under RQ it also keeps the job's durable record (:mod:`curvefm.workers.records`) at "started" and at progress
+milestones. Called directly, outside any queue, it reports nowhere.
 """
 
 from __future__ import annotations
 
 import threading
+import time
 import uuid
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -18,6 +20,7 @@ from contextvars import ContextVar
 from dataclasses import dataclass
 
 from curvefm.progress import Progress, no_progress
+from curvefm.workers.records import records_of
 
 ALIVE_TTL_S = 8
 """A job whose alive key is older than this is considered abandoned by its worker."""
@@ -88,12 +91,19 @@ def running_job() -> Iterator[JobContext]:
 
 
 def _meta_progress(rq_job) -> Progress:
+    records = records_of(rq_job.kwargs)
+
     def report(fraction: float, message: str) -> None:
         rq_job.meta["progress"] = progress_fraction(fraction)
         rq_job.meta["message"] = message
         rq_job.save_meta()
+        if records is not None:
+            records.progress(rq_job.id, progress_fraction(fraction), message)
 
     rq_job.meta.pop("failure", None)  # recorded by an earlier attempt of a retried job
+    if records is not None:
+        started = {"progress": 0.0, "message": "started", "worker": rq_job.worker_name, "started_at": time.time()}
+        records.update(rq_job.id, state="started", **started)
     report(0.0, "started")
     return report
 

@@ -5,20 +5,28 @@ Two implementations run the job functions of :mod:`curvefm.workers.jobs` with th
 :class:`curvefm.workers.rq_queue.RQQueue` (RQ on Redis, run by ``curvefm worker`` processes);
 :func:`curvefm.workers.factory.make_queue` picks one. The service imports only this module and the factory.
 
-States: ``queued``, ``started``, ``finished``, ``failed``, ``canceled``. Progress is a fraction in [0, 1] with a
-message. A failed job reports a :class:`JobFailure` (a kind and one readable line); tracebacks go to the logs.
+States: ``queued``, ``started``, ``finished``, ``failed``, ``canceled`` and ``lost``: the queue lost the job
+(Redis restarted without it, or the API running it in-process restarted); its ``message`` says why. Every job
+also has a durable record in the data directory (:mod:`curvefm.workers.records`), so an id the service issued
+is never unknown. Progress is a fraction in [0, 1] with a message. A failed job reports a :class:`JobFailure`
+(a kind and one readable line); tracebacks go to the logs. A lost, failed or canceled job can be run again
+(:meth:`JobQueue.retry`).
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 from curvefm.errors import Conflict, CurvefmError, InternalError, InvalidInput, NotFound
 
-JobState = Literal["queued", "started", "finished", "failed", "canceled"]
-ENDED_STATES: tuple[JobState, ...] = ("finished", "failed", "canceled")
+if TYPE_CHECKING:
+    from curvefm.workers.records import JobRecords
+
+JobState = Literal["queued", "started", "finished", "failed", "canceled", "lost"]
+ENDED_STATES: tuple[JobState, ...] = ("finished", "failed", "canceled", "lost")
+RETRYABLE_STATES: tuple[JobState, ...] = ("lost", "failed", "canceled")
 JOB_KINDS = ("basis", "refine")
 """What :meth:`JobQueue.submit` runs: ``curvefm.workers.jobs.JOB_FUNCTIONS[kind]``."""
 WORKER_LOST = "worker_lost"
@@ -56,27 +64,45 @@ class JobInfo:
     created_at: float | None = None
     started_at: float | None = None
     ended_at: float | None = None
+    owner: str | None = None
 
 
 class JobQueue(ABC):
     mode: str
+    records: JobRecords
 
     @abstractmethod
-    def submit(self, kind: str, kwargs: dict, dedupe_key: str | None = None) -> JobInfo:
-        """Queue the job function of ``kind`` with ``kwargs``. While a job with the same ``dedupe_key`` is
-        queued or running, return that job instead of starting another."""
+    def submit(self, kind: str, kwargs: dict, dedupe_key: str | None = None, owner: str | None = None) -> JobInfo:
+        """Queue the job function of ``kind`` with ``kwargs`` (plain JSON values). While a job with the same
+        ``dedupe_key`` is queued or running, return that job instead of starting another."""
 
     @abstractmethod
     def get(self, job_id: str) -> JobInfo:
-        """The job's current state; raises :class:`~curvefm.errors.NotFound` for unknown ids."""
+        """The job's current state (``lost`` when the queue lost it); raises
+        :class:`~curvefm.errors.NotFound` for ids the service never issued."""
 
     @abstractmethod
     def cancel(self, job_id: str) -> JobInfo:
         """Cancel a queued job at once, or ask a running one to stop; ended jobs raise a ``Conflict``."""
 
     @abstractmethod
+    def check(self) -> None:
+        """Raise :class:`~curvefm.errors.Unavailable` when the queue cannot take or report jobs now."""
+
+    @abstractmethod
     def close(self) -> None:
         """Release threads and connections."""
+
+    def retry(self, job_id: str) -> JobInfo:
+        """Submit a lost, failed or canceled job again (same kind, arguments and owner); return the new job.
+        Retrying the same job while its retry is queued or running returns that retry."""
+        info = self.get(job_id)
+        if info.state not in RETRYABLE_STATES:
+            raise Conflict(f"job {job_id} is {info.state}; only a lost, failed or canceled job can be retried")
+        stored = self.records.load(job_id)
+        if stored is None:
+            raise Conflict(f"job {job_id} has no stored arguments to run again; send the original request again")
+        return self.submit(info.kind, stored.kwargs, stored.dedupe_key or f"retry:{job_id}", owner=info.owner)
 
 
 def one_line(text: str) -> str:
@@ -89,6 +115,15 @@ def unknown_job(job_id: str) -> NotFound:
 
 def already_ended(info: JobInfo) -> Conflict:
     return Conflict(f"job {info.id} already {info.state}; there is nothing to cancel")
+
+
+def cancel_needed(info: JobInfo) -> bool:
+    """Whether a job is still to be canceled: not when it already was; a job that ended otherwise is a conflict."""
+    if info.state == "canceled":
+        return False
+    if info.state in ENDED_STATES:
+        raise already_ended(info)
+    return True
 
 
 def check_kind(kind: str) -> None:

@@ -21,6 +21,7 @@ from rq.job import Job
 from rq.registry import StartedJobRegistry
 from rq.timeouts import TimerDeathPenalty
 
+from curvefm.workers.connection import UNREACHABLE
 from curvefm.workers.context import alive_key, execution_created_at
 
 log = logging.getLogger("curvefm.workers")
@@ -86,7 +87,9 @@ def start_reaper(connection: Redis, queues: list[Queue], interval_s: float = REA
         while not stop.wait(interval_s):
             try:
                 reap_abandoned(connection, queues)
-            except Exception:  # a Redis hiccup must not end the loop
+            except UNREACHABLE as exc:  # Redis down: said once per interval, in one line
+                log.warning("cannot look for abandoned jobs, Redis does not answer: %s", exc)
+            except Exception:  # nothing may end the loop
                 log.exception("reaping abandoned jobs failed; trying again in %.0f s", interval_s)
 
     threading.Thread(target=loop, name="curvefm-reaper", daemon=True).start()

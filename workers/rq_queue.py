@@ -2,20 +2,25 @@
 
 Queue names are ``<prefix>curvefm-basis`` and ``<prefix>curvefm-refine`` (``CURVEFM_QUEUE_PREFIX``, empty by
 default, lets several deployments or test runs share one Redis). Everything crosses Redis as JSON
-(:data:`curvefm.workers.connection.SERIALIZER`): workers must use it too, as ``curvefm worker`` does. Every
-job carries :func:`record_failure` as its RQ failure callback: a failed job's kind and message are data in
-``job.meta["failure"]``, never read back from traceback text. Jobs whose worker died are handled by
-:mod:`curvefm.workers.reaper`.
+(:data:`curvefm.workers.connection.SERIALIZER`): workers must use it too, as ``curvefm worker`` does. Every job
+carries callbacks that keep its durable record (:mod:`curvefm.workers.records`) and, on failure, store its kind
+and message as data in ``job.meta["failure"]``, never read back from traceback text. Jobs whose worker died
+are handled by :mod:`curvefm.workers.reaper`. While Redis does not answer, every operation raises
+:class:`~curvefm.errors.Unavailable`.
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
+import logging
 import re
 import threading
+import time
 import uuid
-from dataclasses import asdict, replace
+from dataclasses import asdict, fields, replace
 from datetime import UTC, datetime
+from pathlib import Path
 
 from redis import Redis
 from rq import Callback, Queue, Retry
@@ -23,8 +28,8 @@ from rq.command import send_stop_job_command
 from rq.exceptions import AbandonedJobError, InvalidJobOperation, NoSuchJobError
 from rq.job import Job, JobStatus
 
-from curvefm.errors import CurvefmError
-from curvefm.workers.connection import SERIALIZER, connect
+from curvefm.errors import NotFound, Unavailable
+from curvefm.workers.connection import SERIALIZER, UNREACHABLE, connect
 from curvefm.workers.interface import (
     ENDED_STATES,
     JOB_KINDS,
@@ -32,15 +37,25 @@ from curvefm.workers.interface import (
     JobFailure,
     JobInfo,
     JobQueue,
-    already_ended,
+    cancel_needed,
     check_kind,
+    one_line,
     unknown_job,
 )
 from curvefm.workers.jobs import JOB_FUNCTIONS
 from curvefm.workers.reaper import reap_abandoned, start_reaper
+from curvefm.workers.records import JobRecords, StoredJob, lost_reason, records_of
+
+log = logging.getLogger("curvefm.workers")
 
 JOB_TIMEOUT_S = 3 * 3600
 KEEP_RESULTS_S = 7 * 24 * 3600
+RECORDED_STATES_KEPT = 10_000
+QUEUE_LOST = "the job queue (Redis) no longer knows this job (it restarted without its data, or was emptied)"
+REDIS_DOWN = (
+    "the job queue (Redis) does not answer, so jobs can be neither submitted nor followed until it is back; "
+    "curve edits, maps and transfers still work"
+)
 
 _STATES = {
     JobStatus.CREATED: "queued",
@@ -61,11 +76,28 @@ def queue_names(prefix: str = "") -> dict[str, str]:
     return {kind: f"{prefix}curvefm-{kind}" for kind in JOB_KINDS}
 
 
+def _needs_redis(method):
+    """Turn Redis not answering into :class:`~curvefm.errors.Unavailable` (logged without the URL)."""
+
+    @functools.wraps(method)
+    def wrapper(*args, **kwargs):
+        try:
+            return method(*args, **kwargs)
+        except UNREACHABLE as exc:
+            log.warning("Redis does not answer: %s", one_line(str(exc)))
+            raise Unavailable(REDIS_DOWN) from None
+
+    return wrapper
+
+
 class RQQueue(JobQueue):
+    """Jobs on RQ; their records go under ``data_dir``, which the workers share."""
+
     mode = "redis"
 
-    def __init__(self, redis_url: str, prefix: str = "", retries: int = 1):
+    def __init__(self, redis_url: str, data_dir: str | Path, prefix: str = "", retries: int = 1):
         self.connection = connect(redis_url)
+        self.records = JobRecords(data_dir)
         self.retries = retries
         self.queues = {
             kind: Queue(name, connection=self.connection, serializer=SERIALIZER)
@@ -73,15 +105,17 @@ class RQQueue(JobQueue):
         }
         self._dedupe_prefix = f"curvefm:{prefix}dedupe:"
         self._stop_reaper: threading.Event | None = None
+        self._recorded_states: dict[str, str] = {}
 
     def start_reaper(self, interval_s: float) -> None:
         """Hand jobs of dead workers to RQ's retry-or-fail handling every ``interval_s``, until :meth:`close`."""
         self._stop_reaper = start_reaper(self.connection, list(self.queues.values()), interval_s)
 
-    def submit(self, kind: str, kwargs: dict, dedupe_key: str | None = None) -> JobInfo:
+    @_needs_redis
+    def submit(self, kind: str, kwargs: dict, dedupe_key: str | None = None, owner: str | None = None) -> JobInfo:
         check_kind(kind)
         if dedupe_key is None:
-            return self._info(self._enqueue(kind, kwargs))
+            return self._enqueue(kind, kwargs, None, owner)
         key = self._dedupe_prefix + dedupe_key
         with self.connection.lock(key + ":lock", timeout=30, blocking_timeout=30):
             existing = self.connection.get(key)
@@ -89,31 +123,35 @@ class RQQueue(JobQueue):
                 info = self._find(existing.decode())
                 if info is not None and info.state not in ENDED_STATES:
                     return info
-            job = self._enqueue(kind, kwargs)
-            self.connection.set(key, job.id, ex=JOB_TIMEOUT_S)
-        return self._info(job)
+            info = self._enqueue(kind, kwargs, dedupe_key, owner)
+            self.connection.set(key, info.id, ex=JOB_TIMEOUT_S)
+        return info
 
+    @_needs_redis
     def get(self, job_id: str) -> JobInfo:
         info = self._find(job_id)
         if info is None:
-            raise unknown_job(job_id)
+            return self._from_record(job_id)
         if info.state == "started" and reap_abandoned(self.connection, self.queues.values()):
             info = self._find(job_id) or info
+        self._record(info)
         return info
 
+    @_needs_redis
     def cancel(self, job_id: str) -> JobInfo:
-        job = self._fetch(job_id)
-        info = self._info(job)
-        if info.state == "canceled":
+        info = self.get(job_id)
+        if not cancel_needed(info):
             return info
-        if info.state in ENDED_STATES:
-            raise already_ended(info)
         if info.state == "started":
             send_stop_job_command(self.connection, job_id)
             return replace(info, message="cancel requested; the worker stops the job")
         with contextlib.suppress(InvalidJobOperation):  # it was canceled in between
-            job.cancel()
-        return self._info(self._fetch(job_id))
+            self._fetch(job_id).cancel()
+        return self.get(job_id)
+
+    @_needs_redis
+    def check(self) -> None:
+        self.connection.ping()
 
     def close(self) -> None:
         if self._stop_reaper is not None:
@@ -121,19 +159,48 @@ class RQQueue(JobQueue):
         self.connection.close()
 
     # -- helpers ------------------------------------------------------------------------------------------
-    def _enqueue(self, kind: str, kwargs: dict) -> Job:
-        return self.queues[kind].enqueue_call(
-            JOB_FUNCTIONS[kind],
-            kwargs=kwargs,
-            job_id=uuid.uuid4().hex,
-            timeout=JOB_TIMEOUT_S,
-            result_ttl=KEEP_RESULTS_S,
-            failure_ttl=KEEP_RESULTS_S,
-            retry=Retry(max=self.retries) if self.retries > 0 else None,
-            meta={"kind": kind, "progress": 0.0, "message": "queued"},
-            description=f"curvefm {kind}",
-            on_failure=Callback(record_failure),
-        )
+    def _enqueue(self, kind: str, kwargs: dict, dedupe_key: str | None, owner: str | None) -> JobInfo:
+        """Write the job's record, then queue it; a job that could not be queued was never issued."""
+        info = JobInfo(uuid.uuid4().hex, kind, "queued", message="queued", created_at=time.time(), owner=owner)
+        self.records.create(StoredJob(info, kwargs, dedupe_key, runner="rq"))
+        try:
+            job = self.queues[kind].enqueue_call(
+                JOB_FUNCTIONS[kind],
+                kwargs=kwargs,
+                job_id=info.id,
+                timeout=JOB_TIMEOUT_S,
+                result_ttl=KEEP_RESULTS_S,
+                failure_ttl=KEEP_RESULTS_S,
+                retry=Retry(max=self.retries) if self.retries > 0 else None,
+                meta={"kind": kind, "owner": owner, "progress": 0.0, "message": "queued"},
+                description=f"curvefm {kind}",
+                on_success=Callback(record_success),
+                on_failure=Callback(record_failure),
+                on_stopped=Callback(record_stopped),
+            )
+        except BaseException:
+            self.records.delete(info.id)
+            raise
+        return self._info(job)
+
+    def _from_record(self, job_id: str) -> JobInfo:
+        """A job Redis does not know: as its record says, or ``lost`` if it had not ended."""
+        stored = self.records.load(job_id)
+        if stored is None:
+            raise unknown_job(job_id)
+        if stored.info.state in ENDED_STATES:
+            return stored.info
+        return self.records.lose(job_id, lost_reason(stored.info, QUEUE_LOST)) or stored.info
+
+    def _record(self, info: JobInfo) -> None:
+        """Bring the job's record in line with Redis when its state changed (workers record most changes
+        themselves; this catches the rest: cancels, retries of jobs whose worker died)."""
+        if self._recorded_states.get(info.id) == info.state:
+            return
+        if len(self._recorded_states) >= RECORDED_STATES_KEPT:
+            self._recorded_states.clear()
+        self._recorded_states[info.id] = info.state
+        self.records.update(info.id, **{f.name: getattr(info, f.name) for f in fields(info)})
 
     def _fetch(self, job_id: str) -> Job:
         if not _JOB_ID.match(job_id):
@@ -146,7 +213,7 @@ class RQQueue(JobQueue):
     def _find(self, job_id: str) -> JobInfo | None:
         try:
             return self._info(self._fetch(job_id))
-        except CurvefmError:
+        except NotFound:
             return None
 
     def _info(self, job: Job) -> JobInfo:
@@ -164,16 +231,37 @@ class RQQueue(JobQueue):
             created_at=_timestamp(job.created_at),
             started_at=_timestamp(job.started_at),
             ended_at=_timestamp(job.ended_at),
+            owner=meta.get("owner"),
         )
+
+
+def record_success(job: Job, connection: Redis, result) -> None:
+    """RQ's success callback, run by the worker before it tells Redis: the record has the result first."""
+    finished = {"progress": 1.0, "message": "finished", "result": result, "ended_at": time.time()}
+    _update_record(job, state="finished", **finished)
 
 
 def record_failure(job: Job, connection: Redis, exc_type, exc: BaseException, tb) -> None:
     """RQ's failure callback, run by the worker when the job raised and by RQ's abandoned-job handling when
-    its worker died: store the failure as data in ``job.meta["failure"]``."""
+    its worker died: store the failure as data in ``job.meta["failure"]``, and in the record once no retry
+    is left."""
     failure = worker_lost(job) if isinstance(exc, AbandonedJobError) else JobFailure.of(exc)
     job.get_meta(refresh=True)
     job.meta["failure"] = asdict(failure)
     job.save_meta()
+    if not job.retries_left:
+        _update_record(job, state="failed", message="failed", error=failure, ended_at=time.time())
+
+
+def record_stopped(job: Job, connection: Redis) -> None:
+    """RQ's stopped callback, run by the worker whose running job was canceled."""
+    _update_record(job, state="canceled", message="canceled", ended_at=time.time())
+
+
+def _update_record(job: Job, **changes) -> None:
+    records = records_of(job.kwargs)
+    if records is not None:
+        records.update(job.id, **changes)
 
 
 def worker_lost(job: Job) -> JobFailure:

@@ -88,21 +88,21 @@ export const api = {
 };
 
 /** Poll a job until it ends; onProgress(job) sees every state. Resolves with the finished job, rejects
- * with an ApiError carrying the job's readable error when it failed or was canceled. While the service
- * cannot be reached it keeps trying. */
+ * with an ApiError carrying the job's readable error when it failed, was canceled or was lost (its message
+ * says why). While the service, or its job queue (503), cannot be reached it keeps trying. */
 export async function waitForJob(jobId, onProgress, intervalMs = 250) {
   for (;;) {
     let job;
     try {
       job = await api.job(jobId);
     } catch (error) {
-      if (error.kind !== "network") throw error;
+      if (error.kind !== "network" && error.status !== 503) throw error;
       await sleep(2000); // the job goes on in the service; keep asking once it answers again
       continue;
     }
     onProgress(job);
     if (job.state === "finished") return job;
-    if (job.state === "failed" || job.state === "canceled") {
+    if (["failed", "canceled", "lost"].includes(job.state)) {
       throw new ApiError(job.error?.message || `job ${job.state}: ${job.message}`, { kind: job.state });
     }
     await sleep(intervalMs);
