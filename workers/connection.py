@@ -4,7 +4,7 @@ problem (a password missing or refused, a server that does not answer) without t
 from __future__ import annotations
 
 from redis import Redis
-from redis.backoff import ExponentialBackoff
+from redis.backoff import NoBackoff
 from redis.exceptions import AuthenticationError
 from redis.exceptions import ConnectionError as RedisConnectionError
 from redis.exceptions import TimeoutError as RedisTimeoutError
@@ -25,7 +25,8 @@ UNREACHABLE = (RedisConnectionError, RedisTimeoutError)
 def connect(url: str, worker: bool = False) -> Redis:
     """A connection to the Redis at ``url`` that has answered a ping. The API's fails fast (a request must not
     hang on a Redis that is down); a worker's has no command timeout, as RQ blocks on its queues."""
-    fail_fast = {"socket_timeout": COMMAND_TIMEOUT_S, "retry": Retry(ExponentialBackoff(cap=0.5, base=0.1), 2)}
+    # one immediate retry: a pooled connection that a Redis restart broke is replaced by a fresh one
+    fail_fast = {"socket_timeout": COMMAND_TIMEOUT_S, "retry": Retry(NoBackoff(), 1)}
     options = {} if worker else fail_fast
     connection = Redis.from_url(url, socket_connect_timeout=CONNECT_TIMEOUT_S, **options)
     try:
