@@ -188,3 +188,62 @@ def test_a_solver_owns_its_thread_or_uses_the_one_it_is_handed(pair):
     reference.close()
     reference.add_curve(paths[0], paths[0])  # a closed solver starts a thread again when it needs one
     reference.close()
+
+
+def test_many_random_edits_equal_a_fresh_solve(pair):
+    """The solver keeps running sums of the curves' products; 200 random edits leave no visible rounding."""
+    M, bM, N, bN = pair
+    rng = np.random.default_rng(7)
+    paths = curves_on(M, [tuple(rng.integers(0, M.n_vertices, 2)) for _ in range(12)])
+    solver = CurveMapSolver(M.vertices, bM, N.vertices, bN, k=K, interactive=True)
+    held: dict[str, tuple] = {}
+    for _ in range(200):
+        choice = rng.integers(len(paths))
+        curve = (paths[choice], paths[(choice + 1) % len(paths)], float(rng.choice([0.5, 1.0, 30.0])))
+        if held and rng.random() < 0.3:
+            gone = str(rng.choice(sorted(held)))
+            solver.remove_curve(gone)
+            del held[gone]
+        elif held and rng.random() < 0.5:
+            changed = str(rng.choice(sorted(held)))
+            solver.replace_curve(changed, *curve)
+            held[changed] = curve
+        else:
+            held[solver.add_curve(*curve)] = curve
+    fresh = CurveMapSolver(M.vertices, bM, N.vertices, bN, k=K)
+    fresh.add_curves(list(held.values()), ids=list(held))
+    scale = np.abs(fresh.C_MN).max()
+    np.testing.assert_allclose(solver.C_MN, fresh.C_MN, atol=1e-9 * scale)
+    np.testing.assert_allclose(solver.C_NM, fresh.C_NM, atol=1e-9 * np.abs(fresh.C_NM).max())
+
+
+def test_sync_holds_exactly_the_given_curves(pair):
+    M, bM, N, bN = pair
+    solver, ids, paths = solver_with(pair, n_curves=3)
+    new_path = curves_on(M, [ENDPOINTS[4]])[0]
+    wanted = {ids[0]: (paths[0], paths[0], 1.0), ids[2]: (new_path, new_path, 2.0), "x": (paths[1], paths[1], 1.0)}
+    solver.sync(wanted)
+    assert list(solver.curves) == [ids[0], ids[2], "x"]
+    fresh = CurveMapSolver(M.vertices, bM, N.vertices, bN, k=K)
+    fresh.add_curves(list(wanted.values()), ids=list(wanted))
+    np.testing.assert_allclose(solver.C_MN, fresh.C_MN, atol=1e-10)
+    np.testing.assert_allclose(solver.C_NM, fresh.C_NM, atol=1e-10)
+    solver.sync({})
+    assert not solver.curves and not solver.C_MN.any()
+
+
+def test_a_stored_curve_costs_its_paths_not_k_by_k_matrices(pair):
+    import tracemalloc
+
+    M, bM, N, bN = pair
+    solver = CurveMapSolver(M.vertices, bM, N.vertices, bN, k=K)
+    paths = curves_on(M, ENDPOINTS)
+    solver.add_curve(paths[0], paths[0])  # the solver's own k x k arrays exist from here on
+    tracemalloc.start()
+    before = tracemalloc.get_traced_memory()[0]
+    for i in range(40):
+        solver.add_curve(paths[i % len(paths)], paths[i % len(paths)])
+    per_curve = (tracemalloc.get_traced_memory()[0] - before) / 40
+    tracemalloc.stop()
+    path_bytes = 2 * 4 * np.mean([len(p) for p in paths])
+    assert per_curve < path_bytes + 2000 < 3 * K * K * 8, (per_curve, path_bytes)

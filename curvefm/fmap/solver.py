@@ -14,15 +14,18 @@ with ``PhiBar_l = P_l Phi`` (s x k) the basis of M restricted to the l-th curve'
 
 Because ``Lam`` is diagonal, E separates by columns: column j of C solves the k x k system
 ``(G + alpha * diag((lam^N_i - lam^M_j)^2)) c_j = B[:, j]`` with ``G = sum_l w~_l PsiBar_l^T PsiBar_l`` and
-``B = sum_l w~_l PsiBar_l^T PhiBar_l``. Each curve keeps its own k x k products, so adding, editing or
-removing one only re-sums k x k matrices before the k small solves (:mod:`curvefm.fmap.column_solve`).
+``B = sum_l w~_l PsiBar_l^T PhiBar_l``. The solver keeps the weighted sums of the curves' k x k products, so adding,
+editing or removing a curve adds or subtracts one curve's products before the k small solves
+(:mod:`curvefm.fmap.column_solve`). A curve itself is kept as its two vertex paths (int32) and its weight: its
+products are computed again from the paths when it is removed or replaced (well under a millisecond at k = 120), so a
+stored curve costs a few bytes per path vertex instead of three k x k matrices (346 kB at k = 120).
 ``C_NM`` is the same problem with the roles of M and N exchanged; both are solved side by side on two threads,
 or, for an interactive server, ``C_MN`` alone on the calling thread and ``C_NM`` when first read.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import Executor, ThreadPoolExecutor
 from dataclasses import dataclass
 
@@ -39,14 +42,18 @@ DEFAULT_K = 120
 
 @dataclass(frozen=True)
 class CurveTerm:
-    """One curve's contribution: its weight and the k x k products of its restricted bases (means over samples)."""
+    """One curve as the solver keeps it: its vertex paths (internal ids, int32) and its weight."""
 
     path_M: np.ndarray
     path_N: np.ndarray
     weight: float
-    gram_M: np.ndarray  # PhiBar^T PhiBar / s
-    gram_N: np.ndarray  # PsiBar^T PsiBar / s
-    cross: np.ndarray  # PsiBar^T PhiBar / s   (rows: N's basis, columns: M's basis)
+
+    def same_as(self, other: CurveTerm) -> bool:
+        return (
+            self.weight == other.weight
+            and np.array_equal(self.path_M, other.path_M)
+            and np.array_equal(self.path_N, other.path_N)
+        )
 
 
 class CurveMapSolver:
@@ -88,6 +95,7 @@ class CurveMapSolver:
         scale = max(self.basis_M.evals[-1], self.basis_N.evals[-1], 1e-12)
         self.lam_M, self.lam_N = self.basis_M.evals / scale, self.basis_N.evals / scale
         self.curves: dict[str, CurveTerm] = {}
+        self._sums = np.zeros((3, k, k))  # sum over curves of weight * _products(curve)
         self._next_number = 1  # of the next automatic id, c<number>
         self.C_MN = np.zeros((k, k))
         self._C_NM = np.zeros((k, k))
@@ -110,20 +118,39 @@ class CurveMapSolver:
         if len(ids) != len(curves):
             raise InvalidInput(f"{len(curves)} curves but {len(ids)} ids; give one id (or None) per curve")
         terms = [self._term(path_M, path_N, weight) for path_M, path_N, weight in curves]
+        added = sum((term.weight * self._products(term) for term in terms), np.zeros_like(self._sums))
         chosen = self._claim_ids(ids)
         self.curves.update(zip(chosen, terms, strict=True))
+        self._sums += added
         self._solve()
         return chosen
 
     def replace_curve(self, curve_id: str, path_M, path_N, weight: float = 1.0) -> None:
         self._require(curve_id)
-        self.curves[curve_id] = self._term(path_M, path_N, weight)
-        self._solve()
+        self.sync({**self.curves, curve_id: self._term(path_M, path_N, weight)})
 
     def remove_curve(self, curve_id: str) -> None:
         self._require(curve_id)
-        del self.curves[curve_id]
-        self._solve()
+        self.sync({other: term for other, term in self.curves.items() if other != curve_id})
+
+    def sync(self, curves: Mapping[str, CurveTerm | tuple]) -> None:
+        """Hold exactly ``curves`` (id -> :class:`CurveTerm` or ``(path_M, path_N, weight)``), with one solve.
+
+        Curves not given are removed, new and changed ones added; unchanged ones cost nothing. This is how a
+        process brings its solver up to date with a session that another process has edited.
+        """
+        wanted = {curve_id: _as_term(self._term, curve) for curve_id, curve in curves.items()}
+        every = [*self.curves, *(curve_id for curve_id in wanted if curve_id not in self.curves)]
+        changed = [cid for cid in every if not _same(self.curves.get(cid), wanted.get(cid))]
+        delta = np.zeros_like(self._sums)
+        for curve_id in changed:
+            if (new := wanted.get(curve_id)) is not None:
+                delta += new.weight * self._products(new)
+            if (old := self.curves.get(curve_id)) is not None:
+                delta -= old.weight * self._products(old)
+        self.curves, self._sums = wanted, self._sums + delta
+        if changed:
+            self._solve()
 
     def _claim_ids(self, requested: list[str | None]) -> list[str]:
         """The requested ids with automatic ones filled in; explicit ids are checked before any is claimed."""
@@ -153,26 +180,24 @@ class CurveMapSolver:
     def _term(self, path_M, path_N, weight: float) -> CurveTerm:
         if not weight > 0 or not np.isfinite(weight):
             raise InvalidInput(f"curve weight must be a positive number, got {weight}")
-        path_M, path_N = np.asarray(path_M, dtype=np.int64), np.asarray(path_N, dtype=np.int64)
-        phi = restrict(self.vertices_M, path_M, self.basis_M.evecs, self.samples)
-        psi = restrict(self.vertices_N, path_N, self.basis_N.evecs, self.samples)
-        s = self.samples
-        return CurveTerm(path_M, path_N, float(weight), phi.T @ phi / s, psi.T @ psi / s, psi.T @ phi / s)
+        return CurveTerm(_compact(path_M, len(self.vertices_M)), _compact(path_N, len(self.vertices_N)), float(weight))
+
+    def _products(self, term: CurveTerm) -> np.ndarray:
+        """The curve's ``[PhiBar^T PhiBar, PsiBar^T PsiBar, PsiBar^T PhiBar] / s`` (3 x k x k)."""
+        phi = restrict(self.vertices_M, term.path_M, self.basis_M.evecs, self.samples)
+        psi = restrict(self.vertices_N, term.path_N, self.basis_N.evecs, self.samples)
+        return np.stack([phi.T @ phi, psi.T @ psi, psi.T @ phi]) / self.samples
 
     # -- solving ----------------------------------------------------------------------------------------
     def normal_equations(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(G_M, G_N, B)`` summed over curves with normalised weights (B: rows N, columns M)."""
         total = sum(term.weight for term in self.curves.values()) or 1.0
-        G_M, G_N, B = (np.zeros((self.k, self.k)) for _ in range(3))
-        for term in self.curves.values():
-            w = term.weight / total
-            G_M += w * term.gram_M
-            G_N += w * term.gram_N
-            B += w * term.cross
+        G_M, G_N, B = self._sums / total
         return G_M, G_N, B
 
     def _solve(self) -> None:
         if not self.curves:
+            self._sums = np.zeros_like(self._sums)  # exactly zero, whatever rounding the subtractions left
             self.C_MN, self._C_NM = np.zeros((self.k, self.k)), np.zeros((self.k, self.k))
             self._reverse_system = None
             return
@@ -223,3 +248,19 @@ class CurveMapSolver:
 
     def __exit__(self, *exc_info) -> None:
         self.close()
+
+
+def _compact(path, n_vertices: int) -> np.ndarray:
+    """A vertex path as int32 (internal ids), checked against the mesh's ``n_vertices``."""
+    path = np.asarray(path, dtype=np.int64)
+    if path.size and (path.min() < 0 or path.max() >= n_vertices):
+        raise InvalidInput(f"a curve path has a vertex outside 0..{n_vertices - 1}")
+    return path.astype(np.int32)
+
+
+def _as_term(make: Callable[..., CurveTerm], curve: CurveTerm | tuple) -> CurveTerm:
+    return curve if isinstance(curve, CurveTerm) else make(*curve)
+
+
+def _same(a: CurveTerm | None, b: CurveTerm | None) -> bool:
+    return a is b or (a is not None and b is not None and a.same_as(b))
