@@ -9,10 +9,12 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from dataclasses import fields
 
 from curvefm.errors import CurvefmError, InternalError, InvalidInput
 from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K
 from curvefm.runtime import limit_blas_threads
+from curvefm.session import SessionLimits
 
 
 def progress_bar(description: str):
@@ -119,8 +121,11 @@ def cmd_reproduce(args) -> int:
 
 def cmd_serve(args) -> int:
     from curvefm.service.app import serve_main
+    from curvefm.service.settings import LIMITS
 
-    serve_main(args.host, args.port, args.data, args.redis_url, args.demo, args.max_upload_bytes, args.log_level)
+    limits = {name: getattr(args, name) for name in LIMITS}
+    serve_main(args.host, args.port, args.log_level, data_dir=args.data, redis_url=args.redis_url, demo=args.demo,
+               **limits)
     return 0
 
 
@@ -227,7 +232,11 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("--redis-url", help="send jobs to RQ on this Redis (default $CURVEFM_REDIS_URL; none: in-process)")
     s.add_argument("--demo", action=argparse.BooleanOptionalAction, default=False,
                    help="add two generated shapes and a ready session 'demo'")
-    s.add_argument("--max-upload-bytes", type=int, help="default $CURVEFM_MAX_UPLOAD_BYTES or 200 MB")
+    s.add_argument("--max-upload-bytes", type=int, help="largest upload (default $CURVEFM_MAX_UPLOAD_BYTES or 200 MB)")
+    s.add_argument("--max-body-bytes", type=int, help="largest other request (default $CURVEFM_MAX_BODY_BYTES or 4 MB)")
+    for limit in fields(SessionLimits):
+        s.add_argument(f"--{limit.name.replace('_', '-')}", type=int,
+                       help=f"{limit.metadata['help']} (default $CURVEFM_{limit.name.upper()} or {limit.default})")
     s.add_argument("--log-level", default="info")
     s.set_defaults(run=cmd_serve)
 

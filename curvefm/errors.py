@@ -7,7 +7,7 @@ statuses are chosen in :mod:`curvefm.service.errors`, not here.
 * :class:`InvalidInput`: bad input a user can fix (bad mesh, unknown plugin, vertex out of range, wrong k).
 * :class:`NotFound`: no such shape, session, curve, job or file.
 * :class:`Conflict`: the request is well formed but the state does not allow it (e.g. bases not computed yet).
-* :class:`ResourceLimit`: the input is larger than a configured limit.
+* :class:`ResourceLimit`: the input is larger than a configured limit (:class:`LimitExceeded` names the limit).
 * :class:`InternalError`: our failure, not the user's (an eigensolver or LAPACK failure, a non-finite result).
 * :class:`Unavailable`: something the request needs (the job queue's Redis) does not answer now; try again later.
 """
@@ -40,6 +40,22 @@ class Conflict(CurvefmError):
 
 class ResourceLimit(CurvefmError):
     code = "too_large"
+
+
+class LimitExceeded(ResourceLimit):
+    """A request asks for more than the configured limit ``name`` (e.g. ``max_waypoints``) allows.
+
+    A limit ``max_x`` is set by the environment variable ``CURVEFM_MAX_X`` or ``curvefm serve --max-x``; the message
+    names the limit, its value and how to change it.
+    """
+
+    def __init__(self, name: str, limit: int, what: str, unit: str = ""):
+        self.name, self.limit = name, limit
+        option = "--" + name.replace("_", "-")
+        super().__init__(
+            f"{what}: more than the limit of {limit}{unit} ({name}; set CURVEFM_{name.upper()} or "
+            f"'curvefm serve {option}' to change it)"
+        )
 
 
 class InternalError(CurvefmError):

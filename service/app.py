@@ -5,11 +5,11 @@ from __future__ import annotations
 import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
-from pathlib import Path
 
 from fastapi import FastAPI
+from starlette.exceptions import HTTPException
 
-from curvefm.errors import ResourceLimit
+from curvefm.errors import LimitExceeded
 from curvefm.service import routes_jobs, routes_sessions, routes_shapes
 from curvefm.service.deps import start_services
 from curvefm.service.errors import error_response, error_responses, install_error_handlers
@@ -26,23 +26,49 @@ ids in the uploaded files. Errors are JSON: `{"error": kind, "detail": message}`
 adds an `error_id` that the server log files its details under."""
 
 
-class BodySizeLimit:
-    """Reject requests whose declared body is larger than the upload limit before reading them (413)."""
+class BodyTooLarge(HTTPException):
+    """Raised by the body-limited ``receive``: FastAPI passes an HTTP exception from reading a body through
+    unchanged (any other becomes "error parsing the body"), and the error handlers answer it as an ErrorBody."""
 
-    def __init__(self, app, limit: int):
-        self.app, self.limit = app, limit
+    def __init__(self, error: LimitExceeded):
+        super().__init__(status_code=413, detail=error.message)
+
+
+class BodySizeLimit:
+    """Bound every request body: an upload (``POST /shapes``) by ``max_upload_bytes``, any other request by
+    ``max_body_bytes``.
+
+    A declared Content-Length over the limit is answered 413 at once, before anything is read. Otherwise the body
+    is counted as it arrives, whatever Content-Length says and for chunked bodies alike, and the read that would
+    pass the limit raises :class:`BodyTooLarge` instead of handing the bytes on: no more than the limit is ever
+    parsed or spooled to a temporary file.
+    """
+
+    def __init__(self, app, settings: Settings):
+        self.app, self.settings = app, settings
 
     async def __call__(self, scope, receive, send) -> None:
-        if scope["type"] == "http":
-            declared = dict(scope["headers"]).get(b"content-length", b"")
-            if declared.isdigit() and int(declared) > self.limit:
-                error = ResourceLimit(
-                    f"request body of {int(declared)} bytes is larger than the limit of {self.limit} bytes "
-                    "(set CURVEFM_MAX_UPLOAD_BYTES to change it)",
-                )
-                await error_response(error)(scope, receive, send)
-                return
-        await self.app(scope, receive, send)
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        name = "max_upload_bytes" if (scope["method"], scope["path"]) == ("POST", "/shapes") else "max_body_bytes"
+        limit = getattr(self.settings, name)
+        declared = dict(scope["headers"]).get(b"content-length", b"")
+        if declared.isdigit() and int(declared) > limit:
+            error = LimitExceeded(name, limit, f"a request body of {int(declared)} bytes", " bytes")
+            await error_response(error)(scope, receive, send)
+            return
+        received = 0
+
+        async def receive_within_limit():
+            nonlocal received
+            message = await receive()
+            received += len(message.get("body", b""))
+            if received > limit:
+                raise BodyTooLarge(LimitExceeded(name, limit, "the request body", " bytes"))
+            return message
+
+        await self.app(scope, receive_within_limit, send)
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
@@ -66,29 +92,22 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     install_error_handlers(app)
     install_hints(app)
-    app.add_middleware(BodySizeLimit, limit=settings.max_upload_bytes)
+    app.add_middleware(BodySizeLimit, settings=settings)
     for module in (routes_shapes, routes_sessions, routes_jobs):
         app.include_router(module.router)
     mount_ui(app)  # last: its catch-all mount at / must not shadow the API routes
     return app
 
 
-def serve_main(
-    host: str = "127.0.0.1",
-    port: int = 8000,
-    data_dir: str | Path | None = None,
-    redis_url: str | None = None,
-    demo: bool = False,
-    max_upload_bytes: int | None = None,
-    log_level: str = "info",
-) -> None:
-    """Run the API with uvicorn until interrupted. ``None`` arguments fall back to the environment
-    (``CURVEFM_DATA``, ``CURVEFM_REDIS_URL``, ``CURVEFM_MAX_UPLOAD_BYTES``); without Redis, jobs run
-    in-process. One process only: sessions are cached in it and edits are serialised by in-process locks."""
+def serve_main(host: str = "127.0.0.1", port: int = 8000, log_level: str = "info", **overrides) -> None:
+    """Run the API with uvicorn until interrupted. ``overrides`` set :class:`Settings` by name (``data_dir``,
+    ``redis_url``, ``demo``, the limits); ``None`` ones fall back to the environment (``CURVEFM_DATA``,
+    ``CURVEFM_REDIS_URL``, ``CURVEFM_MAX_UPLOAD_BYTES``, ...). Without Redis, jobs run in-process. Several
+    processes may serve one data directory: edits of a session are serialised by a lock file per session."""
     import uvicorn
 
     logging.basicConfig(level=log_level.upper(), format="%(asctime)s %(levelname)s %(name)s: %(message)s")
-    settings = Settings.from_env(data_dir=data_dir, redis_url=redis_url, demo=demo, max_upload_bytes=max_upload_bytes)
+    settings = Settings.from_env(**overrides)
     if settings.redis_url:
         check_redis(settings.redis_url)  # a wrong password is one line (exit 2), not a traceback at startup
     uvicorn.run(create_app(settings), host=host, port=port, log_level=log_level)

@@ -44,7 +44,8 @@ def start_services(settings: Settings) -> Services:
     )
     records = SessionStore(store.root)
     live = LiveSessions(store, records)
-    sessions = SessionEditor(records, live, find_plugin=require_plugin)  # its errors list the installed plugins
+    # require_plugin's errors list the installed plugins
+    sessions = SessionEditor(records, live, find_plugin=require_plugin, limits=settings.session_limits)
     return Services(settings, store, queue, records, live, sessions)
 
 

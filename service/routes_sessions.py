@@ -10,11 +10,11 @@ from curvefm.errors import Conflict, InvalidInput
 from curvefm.service.deps import JOB_ERRORS, ServicesDep, job_model
 from curvefm.service.errors import error_responses, require_plugin
 from curvefm.service.models import CurveEdit, JobInfoModel, MapResponse, RefineRequest, SessionSummary
-from curvefm.session import CurveSpec, SessionCreate, SessionRecord, TransferFunction
+from curvefm.session import MAX_VERTEX_ID, CurveSpec, SessionCreate, SessionRecord, TransferFunction
 from curvefm.spectral import check_k
 
 router = APIRouter(tags=["sessions"])
-ERRORS = error_responses(400, 404, 409, 422)
+ERRORS = error_responses(400, 404, 409, 413, 422)
 
 
 @router.post("/sessions", status_code=201, response_model=SessionRecord, responses=ERRORS)
@@ -103,6 +103,7 @@ def refine(session_id: str, body: RefineRequest, services: ServicesDep) -> JobIn
     if size:  # a basis the shapes cannot have is a bad request now, not a failed job later
         smallest = min(services.live.mesh(s).n_vertices for s in (record.source, record.target))
         check_k(size, smallest, f"the smaller shape of session {session_id}")
+        services.sessions.limits.check("max_k", size, f"a basis of {size} functions for '{body.converter}'")
     params = parsed.model_dump()
     if not record.curves:
         raise Conflict(f"session {session_id} has no curves yet; add at least one before refining")
@@ -119,6 +120,10 @@ def _parse_ids(text: str | None) -> list[int] | None:
     if not text:
         return None
     try:
-        return [int(part) for part in text.split(",") if part.strip()]
+        ids = [int(part) for part in text.split(",") if part.strip()]
     except ValueError:
         raise InvalidInput(f"vertices must be comma-separated integers, got '{text}'") from None
+    for vertex in ids:
+        if not 0 <= vertex <= MAX_VERTEX_ID:
+            raise InvalidInput(f"vertices: {vertex} is not a vertex id (0-based file ids, 0 to {MAX_VERTEX_ID})")
+    return ids

@@ -4,14 +4,15 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
 import tempfile
 from pathlib import Path
-from typing import Annotated, BinaryIO, Literal
+from typing import Annotated, Literal
 
 import numpy as np
 from fastapi import APIRouter, File, Form, Response, UploadFile
 
-from curvefm.errors import CurvefmError, InvalidInput, ResourceLimit
+from curvefm.errors import InvalidInput
 from curvefm.geometry import SUPPORTED_FORMATS, Mesh, load_mesh, texture_coordinates
 from curvefm.service.deps import JOB_ERRORS, Services, ServicesDep, job_model, submit_basis
 from curvefm.service.errors import error_responses, require_plugin
@@ -42,7 +43,8 @@ def upload_shape(
         )
     with tempfile.TemporaryDirectory(prefix="curvefm-upload-") as folder:
         path = Path(folder) / _safe_filename(filename)  # messages then name the user's file
-        _copy_limited(file.file, path, services.settings.max_upload_bytes)
+        with open(path, "wb") as out:  # the body limit (BodySizeLimit) has bounded the upload already
+            shutil.copyfileobj(file.file, out, COPY_CHUNK)
         mesh = load_mesh(path, name=name or Path(filename).stem)
     if services.store.has_mesh(mesh.content_hash):
         response.status_code = 200
@@ -91,6 +93,7 @@ def request_basis(shape_id: str, body: BasisRequest, services: ServicesDep) -> J
     mesh = services.live.mesh(shape_id)
     canonical = require_plugin("basis", body.plugin).parse_params(body.params).model_dump()
     check_k(body.k, mesh.n_vertices, mesh.name or shape_id)
+    services.sessions.limits.check("max_k", body.k, f"k = {body.k} basis functions")
     return job_model(submit_basis(services, shape_id, body.k, body.plugin, canonical))
 
 
@@ -130,22 +133,6 @@ def _mesh_arrays(mesh: Mesh) -> dict[str, np.ndarray]:
     if mesh.uv is not None:
         arrays["uv"] = mesh.uv.astype("<f4")
     return arrays
-
-
-def _copy_limited(source: BinaryIO, destination: Path, limit: int) -> None:
-    copied = 0
-    with open(destination, "wb") as out:
-        while chunk := source.read(COPY_CHUNK):
-            copied += len(chunk)
-            if copied > limit:
-                raise too_large(limit)
-            out.write(chunk)
-
-
-def too_large(limit: int) -> CurvefmError:
-    return ResourceLimit(
-        f"upload is larger than the limit of {limit} bytes (set CURVEFM_MAX_UPLOAD_BYTES to change it)",
-    )
 
 
 def _safe_filename(filename: str) -> str:

@@ -163,7 +163,7 @@ def test_unknown_ids_in_edits(server):
 def test_vertex_ids_out_of_range(server):
     url = f"/sessions/{server.session}/curves"
     expect(server.client.post(url, json={"source": [0, 99999], "target": [0, 5]}), 400, "invalid", "99999")
-    expect(server.client.post(url, json={"source": [0, 5], "target": [-1, 5]}), 400, "invalid", "-1")
+    expect(server.client.post(url, json={"source": [0, 5], "target": [-1, 5]}), 422, "invalid", "body.target.0")
     explicit = {"source": [0, 3000], "target": [0, 3000], "explicit": True}
     expect(server.client.post(url, json=explicit), 400, "invalid", "edge-connected")
     transfer = f"/sessions/{server.session}/transfer"

@@ -1,5 +1,8 @@
 """The session domain without HTTP: records on disk, the live cache, the edit operations."""
 
+import json
+from array import array
+
 import numpy as np
 import pytest
 from pydantic import ValidationError
@@ -8,6 +11,7 @@ from shapes import basis_of, ellipsoid
 from curvefm import registry
 from curvefm.errors import Conflict, NotFound
 from curvefm.session import (
+    CurveRecord,
     CurveSpec,
     LiveSessions,
     MissingBasis,
@@ -138,3 +142,17 @@ def test_solver_parameters_are_validated_by_the_request_and_the_record(field, va
               "basis_plugin": "laplace-beltrami", "basis_params": {}, "created_at": 0.0, "updated_at": 0.0}  # fmt: skip
     with pytest.raises(ValidationError, match=field):
         SessionRecord(**(fields | {field: value}))
+
+
+def test_stored_paths_are_int32_in_memory_and_lists_in_the_record_file(store):
+    editor = editor_on(store)
+    session = new_session(editor, store)
+    added, _ = editor.add_curve(session.id, curve(0))
+    assert isinstance(added.path_source, array) and added.path_source.itemsize == 4
+    on_disk = (store.root / "sessions" / f"{session.id}.json").read_bytes()
+    stored = json.loads(on_disk)["curves"][0]
+    assert stored["path_source"] == added.path_source.tolist() and all(type(v) is int for v in stored["path_target"])
+    assert SessionRecord.model_validate_json(on_disk).model_dump_json(indent=1).encode() == on_disk
+    with pytest.raises(ValidationError, match="vertex ids are 0 to"):
+        CurveRecord(id="c9", spec=curve(0), tracer="geodesic", path_source=[0, 2**31], path_target=[0, 1])
+    editor.live.close()

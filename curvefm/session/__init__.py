@@ -11,11 +11,22 @@ curves a user draws, kept as a record on disk and, in a long-running process, li
 * ``live``: :class:`LiveSessions`, the bounded in-memory cache of solvers, shapes, bases and transfers, with a
   fixed set of locks;
 * ``editing``: :class:`SessionEditor`, the operations (create, add / replace / remove a curve, maps,
-  transfer), each written to disk before it returns.
+  transfer), each written to disk before it returns;
+* ``limits``: :class:`SessionLimits`, the configurable bounds on what one request may ask (waypoints, path
+  vertices, curves, ``k``).
 """
 
-from curvefm.session.curves import CurvesFile, CurveSpec, read_curves, trace_curve, trace_pair
+from curvefm.session.curves import (
+    MAX_VERTEX_ID,
+    CurvesFile,
+    CurveSpec,
+    VertexId,
+    read_curves,
+    trace_curve,
+    trace_pair,
+)
 from curvefm.session.editing import MapSummary, SessionEditor, TransferFunction, source_function
+from curvefm.session.limits import SessionLimits
 from curvefm.session.live import LiveSession, LiveSessions, UnknownShape
 from curvefm.session.pair import (
     BasisNeed,
@@ -27,11 +38,12 @@ from curvefm.session.pair import (
     load_basis,
     load_pair,
 )
-from curvefm.session.record import Alpha, CurveRecord, MapSize, Samples, SessionCreate, SessionRecord
+from curvefm.session.record import Alpha, CurveRecord, MapSize, Samples, SessionCreate, SessionRecord, VertexPath
 from curvefm.session.record_store import SessionStore, UnknownSession
 from curvefm.spectral import ShapePair  # defined below the maps that use it; the session's pair is the same type
 
 __all__ = [
+    "MAX_VERTEX_ID",
     "Alpha",
     "BasisNeed",
     "CurveRecord",
@@ -45,12 +57,15 @@ __all__ = [
     "Samples",
     "SessionCreate",
     "SessionEditor",
+    "SessionLimits",
     "SessionRecord",
     "SessionStore",
     "ShapePair",
     "TransferFunction",
     "UnknownSession",
     "UnknownShape",
+    "VertexId",
+    "VertexPath",
     "basis_available",
     "basis_needs",
     "build_solver",

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
@@ -13,6 +14,14 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from curvefm import registry
 from curvefm.errors import InvalidInput, NotFound
 from curvefm.geometry import Mesh, check_edge_path
+
+MAX_VERTEX_ID = 2**31 - 1
+"""No mesh has more vertices (paths are stored as int32). Also a bound that survives the OpenAPI schema, whose
+numbers FastAPI writes as floats: 2**63 - 1 would read there as 2**63."""
+VertexId = Annotated[
+    int, Field(ge=0, le=MAX_VERTEX_ID, description="a vertex id in the mesh file (0-based); the mesh bounds it further")
+]
+"""A file vertex id as a request may give it: the bounds keep ids beyond int64 out of the numeric code."""
 
 
 class CurveSpec(BaseModel):
@@ -23,8 +32,8 @@ class CurveSpec(BaseModel):
     """
 
     model_config = ConfigDict(extra="forbid")
-    source: list[int] = Field(min_length=1)
-    target: list[int] = Field(min_length=1)
+    source: list[VertexId] = Field(min_length=1)
+    target: list[VertexId] = Field(min_length=1)
     explicit: bool = False
     tracer: str | None = None
     tracer_params: dict = Field(default_factory=dict)

@@ -23,6 +23,7 @@ from curvefm.fmap import FunctionTransfer
 from curvefm.geometry import Mesh, texture_coordinates
 from curvefm.registry import Plugin
 from curvefm.session.curves import CurveSpec, trace_pair
+from curvefm.session.limits import SessionLimits
 from curvefm.session.live import LiveSession, LiveSessions
 from curvefm.session.pair import MissingBasis, basis_available, basis_needs, internal_paths
 from curvefm.session.record import CurveRecord, SessionCreate, SessionRecord
@@ -45,13 +46,18 @@ class SessionEditor:
     """Sessions stored in ``records`` and kept live in ``live``.
 
     ``find_plugin(kind, name)`` looks plugins up (default :func:`curvefm.registry.get`); the API passes one
-    whose error lists the installed plugins.
+    whose error lists the installed plugins. ``limits`` bounds what one request may ask.
     """
 
     def __init__(
-        self, records: SessionStore, live: LiveSessions, find_plugin: Callable[[str, str], Plugin] = registry.get
+        self,
+        records: SessionStore,
+        live: LiveSessions,
+        find_plugin: Callable[[str, str], Plugin] = registry.get,
+        limits: SessionLimits | None = None,
     ):
         self.records, self.live, self.find_plugin = records, live, find_plugin
+        self.limits = limits or SessionLimits()
 
     def create(self, request: SessionCreate, session_id: str | None = None) -> SessionRecord:
         """A new session; both shapes must already have bases with at least ``k`` functions."""
@@ -78,9 +84,12 @@ class SessionEditor:
 
     # -- edits --------------------------------------------------------------------------------------------
     def add_curve(self, session_id: str, spec: CurveSpec) -> tuple[CurveRecord, MapSummary]:
-        traced = self._trace(self.record(session_id), spec)
+        record = self.record(session_id)
+        self._check_room(record)
+        traced = self._trace(record, spec)
         with self.live.lock(session_id):
             live = self.live.get(session_id)
+            self._check_room(live.record)
             curve = traced.model_copy(update={"id": f"c{live.record.next_curve}"})
             started = time.perf_counter()
             live.solver.add_curve(*internal_paths(live.pair, curve), weight=spec.weight, curve_id=curve.id)
@@ -139,6 +148,7 @@ class SessionEditor:
         for need in needs:
             mesh = self.live.mesh(need.mesh_id, need.role)
             check_k(record.k, mesh.n_vertices, mesh.name or need.mesh_id)
+        self.limits.check("max_k", record.k, f"k = {record.k} basis functions")
         missing = [need for need in needs if not basis_available(self.live.store, need)]
         if missing:
             raise MissingBasis(missing)
@@ -148,15 +158,27 @@ class SessionEditor:
         tracer = spec.tracer or record.tracer
         if not spec.explicit:
             self.find_plugin("tracer", tracer)
+        for side, ids in (("source", spec.source), ("target", spec.target)):
+            if spec.explicit:
+                self.limits.check("max_path_vertices", len(ids), f"{len(ids)} vertices in the {side} path")
+            else:
+                self.limits.check("max_waypoints", len(ids), f"{len(ids)} waypoints on the {side}")
         mesh_M, mesh_N = self.live.mesh(record.source, "source"), self.live.mesh(record.target, "target")
         path_M, path_N = trace_pair(mesh_M, mesh_N, spec, record.tracer)
+        for side, path in (("source", path_M), ("target", path_N)):
+            self.limits.check("max_path_vertices", len(path), f"{len(path)} vertices in the traced {side} path")
         return CurveRecord(
             id="new",
             spec=spec,
             tracer="explicit" if spec.explicit else tracer,
-            path_source=mesh_M.file_ids[path_M].tolist(),
-            path_target=mesh_N.file_ids[path_N].tolist(),
+            path_source=mesh_M.file_ids[path_M],
+            path_target=mesh_N.file_ids[path_N],
         )
+
+    def _check_room(self, record: SessionRecord) -> None:
+        """Room for one more curve in the session."""
+        count = len(record.curves) + 1
+        self.limits.check("max_curves", count, f"{count} curves in session {record.id}")
 
     def _commit(self, live: LiveSession, **changes) -> None:
         """Write the edited record, then make it the live one. If writing fails the solver already holds the

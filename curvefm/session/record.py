@@ -11,16 +11,38 @@ request for a new session (:class:`SessionCreate`) and the record share.
 
 from __future__ import annotations
 
+from array import array
 from typing import Annotated
 
-from pydantic import BaseModel, ConfigDict, Field
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, PlainSerializer, PlainValidator
 
 from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K, DEFAULT_SAMPLES
-from curvefm.session.curves import CurveSpec
+from curvefm.session.curves import MAX_VERTEX_ID, CurveSpec, VertexId
 
 MapSize = Annotated[int, Field(ge=1, description="basis functions per shape: the maps are k x k")]
 Alpha = Annotated[float, Field(ge=0, allow_inf_nan=False, description="weight of Laplacian commutativity")]
 Samples = Annotated[int, Field(ge=2, le=10_000, description="samples per curve")]
+
+
+def _vertex_path(value) -> array:
+    if isinstance(value, array) and value.typecode == "i":
+        return value
+    ids = np.asarray(value)
+    if ids.ndim != 1 or (ids.size and not np.issubdtype(ids.dtype, np.integer)):
+        raise ValueError("a path is a list of vertex ids (integers)")
+    if ids.size and (ids.min() < 0 or ids.max() > MAX_VERTEX_ID):
+        raise ValueError(f"a path's vertex ids are 0 to {MAX_VERTEX_ID}")
+    return array("i", ids.astype(np.int32).tobytes())
+
+
+VertexPath = Annotated[
+    array,
+    PlainValidator(_vertex_path, json_schema_input_type=list[VertexId]),
+    PlainSerializer(array.tolist, return_type=list[int]),
+]
+"""A vertex path (file ids, start first): a list of ids in JSON, a compact int32 ``array`` in memory (4 bytes an
+id instead of a Python list's 36)."""
 
 
 class SessionCreate(BaseModel):
@@ -45,8 +67,8 @@ class CurveRecord(BaseModel):
     id: str
     spec: CurveSpec
     tracer: str = Field(description="tracer actually used (the session default when the spec names none)")
-    path_source: list[int]
-    path_target: list[int]
+    path_source: VertexPath
+    path_target: VertexPath
 
 
 class SessionRecord(BaseModel):
