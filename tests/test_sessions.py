@@ -1,6 +1,7 @@
 """The session domain without HTTP: records on disk, the live cache, the edit operations."""
 
 import json
+import threading
 from array import array
 
 import numpy as np
@@ -156,3 +157,50 @@ def test_stored_paths_are_int32_in_memory_and_lists_in_the_record_file(store):
     with pytest.raises(ValidationError, match="vertex ids are 0 to"):
         CurveRecord(id="c9", spec=curve(0), tracer="geodesic", path_source=[0, 2**31], path_target=[0, 1])
     editor.live.close()
+
+
+def test_two_editors_on_one_data_directory_see_each_others_edits(store):
+    """Two editors stand for two API processes: each edit starts from the record on disk, a live solver that
+    another editor left behind is brought up to date, and curve ids come from the fresh record."""
+    first, second = editor_on(store), editor_on(store)
+    session = new_session(first, store)
+    assert first.add_curve(session.id, curve(0))[0].id == "c1"
+    assert second.add_curve(session.id, curve(1))[0].id == "c2"
+    C_MN, _, record = first.maps(session.id)  # the first editor's solver still held one curve
+    assert [c.id for c in record.curves] == ["c1", "c2"] and record.revision == 2
+    rebuilt = build_solver(record, load_pair(store, record))
+    np.testing.assert_allclose(C_MN, rebuilt.C_MN, atol=1e-10)
+    second.replace_curve(session.id, "c1", curve(2))
+    first.remove_curve(session.id, "c2")
+    assert first.add_curve(session.id, curve(3))[0].id == "c3"
+    C_MN, C_NM, record = second.maps(session.id)
+    assert [c.id for c in record.curves] == ["c1", "c3"] and record.revision == 5
+    assert record.curves[0].spec == curve(2)
+    rebuilt = build_solver(record, load_pair(store, record))
+    np.testing.assert_allclose(C_MN, rebuilt.C_MN, atol=1e-10)
+    np.testing.assert_allclose(C_NM, rebuilt.C_NM, atol=1e-10)
+    first.live.close()
+    second.live.close()
+
+
+def test_concurrent_adds_through_two_editors_are_all_kept(store):
+    editors = [editor_on(store), editor_on(store)]
+    session = new_session(editors[0], store)
+    acknowledged = []
+
+    def add(worker: int) -> None:
+        for i in range(6):
+            added, summary = editors[(worker + i) % 2].add_curve(session.id, curve((worker + i) % len(ENDPOINTS)))
+            acknowledged.append((added.id, summary.revision))
+
+    threads = [threading.Thread(target=add, args=(worker,)) for worker in range(4)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    stored = editors[0].records.read(session.id)
+    ids = [c.id for c in stored.curves]
+    assert sorted(ids) == sorted(curve_id for curve_id, _ in acknowledged) and len(set(ids)) == 24
+    assert sorted(revision for _, revision in acknowledged) == list(range(1, 25)) and stored.revision == 24
+    for editor in editors:
+        editor.live.close()

@@ -1,10 +1,11 @@
 """The operations on sessions: create one, add / replace / remove curves, read the maps, transfer a function.
 
 An edit changes the live solver and writes the record (atomically, with the next revision) before it returns,
-so an acknowledged edit survives a restart. Edits of one session are serialised by its lock; tracing, the slow
-part, runs before the lock is taken, so edits of different sessions, and the tracing of one, run in parallel.
-Curve ids are ``c<n>`` with ``n`` the record's ``next_curve`` (never reused); the solver holds the curves under
-the same ids.
+so an acknowledged edit survives a restart. Edits of one session are serialised by its locks, within the
+process and across processes (:meth:`LiveSessions.editing`), and start from the record as last written;
+tracing, the slow part, runs before the locks are taken, so edits of different sessions, and the tracing of one,
+run in parallel. Curve ids are ``c<n>`` with ``n`` the record's ``next_curve`` (never reused); the solver holds
+the curves under the same ids.
 """
 
 from __future__ import annotations
@@ -72,23 +73,19 @@ class SessionEditor:
             **request.model_dump(exclude={"basis_params"}),
         )
         self._check_shapes(record)
-        with self.live.lock(record.id):
-            self.records.create(record)
-            self.live.get(record.id)  # bases loaded and solver built now, not on the first curve
+        self.records.create(record)
+        self.live.prepare(record.id)
         return record
 
     def record(self, session_id: str) -> SessionRecord:
-        with self.live.lock(session_id):
-            live = self.live.peek(session_id)
-            return live.record if live is not None else self.records.read(session_id)
+        return self.records.read(session_id)
 
     # -- edits --------------------------------------------------------------------------------------------
     def add_curve(self, session_id: str, spec: CurveSpec) -> tuple[CurveRecord, MapSummary]:
         record = self.record(session_id)
         self._check_room(record)
         traced = self._trace(record, spec)
-        with self.live.lock(session_id):
-            live = self.live.get(session_id)
+        with self.live.editing(session_id) as live:
             self._check_room(live.record)
             curve = traced.model_copy(update={"id": f"c{live.record.next_curve}"})
             started = time.perf_counter()
@@ -101,8 +98,7 @@ class SessionEditor:
         record = self.record(session_id)
         _require_curve(record, curve_id)
         traced = self._trace(record, spec)
-        with self.live.lock(session_id):
-            live = self.live.get(session_id)
+        with self.live.editing(session_id) as live:
             _require_curve(live.record, curve_id)
             curve = traced.model_copy(update={"id": curve_id})
             started = time.perf_counter()
@@ -112,8 +108,7 @@ class SessionEditor:
             return curve, _summary(live, solve_ms)
 
     def remove_curve(self, session_id: str, curve_id: str) -> MapSummary:
-        with self.live.lock(session_id):
-            live = self.live.get(session_id)
+        with self.live.editing(session_id) as live:
             _require_curve(live.record, curve_id)
             started = time.perf_counter()
             live.solver.remove_curve(curve_id)
@@ -124,8 +119,7 @@ class SessionEditor:
     # -- maps and transfer --------------------------------------------------------------------------------
     def maps(self, session_id: str) -> tuple[np.ndarray, np.ndarray, SessionRecord]:
         """``(C_MN, C_NM, record)``: both maps and the record they reflect."""
-        with self.live.lock(session_id):
-            live = self.live.get(session_id)
+        with self.live.using(session_id) as live:
             return live.solver.C_MN, live.solver.C_NM, live.record
 
     def transfer(
@@ -133,8 +127,7 @@ class SessionEditor:
     ) -> tuple[np.ndarray, int]:
         """``function`` on the source carried to the target: float32 rows per target vertex (internal
         order), and the session revision it reflects."""
-        with self.live.lock(session_id):
-            live = self.live.get(session_id)
+        with self.live.using(session_id) as live:
             C_MN, revision = live.solver.C_MN, live.record.revision
         key = (function, tuple(vertices or ()))
         carried = live.transfers.get(key, lambda: _projected(live, function, vertices))

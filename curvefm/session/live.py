@@ -7,20 +7,27 @@ executor it owns, and serialises the use of each session through a fixed set of 
 ``crc32(s) % 64``, so the lock table does not grow with the ids asked for. Two sessions rarely contend: at the
 load budget (50 sessions editing twice a second, about 10 ms an edit) an edit finds its lock held by another
 session's edit about 1 time in 65.
+
+Other processes may edit the same sessions (several API processes on one data directory). So every use starts
+by reading the record's revision from disk; a live session behind it is brought up to date
+(:meth:`CurveMapSolver.sync <curvefm.fmap.CurveMapSolver.sync>` recomputes only the curves that changed), and an
+edit also holds the record's file lock (:meth:`SessionStore.locked`) from that read to its write.
 """
 
 from __future__ import annotations
 
 import threading
 import zlib
+from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 from curvefm.cache import LRU
 from curvefm.errors import NotFound
 from curvefm.fmap import CurveMapSolver, FunctionTransfer
 from curvefm.geometry import Mesh
-from curvefm.session.pair import BasisNeed, ShapePair, basis_needs, build_solver, load_basis
+from curvefm.session.pair import BasisNeed, ShapePair, basis_needs, build_solver, internal_paths, load_basis
 from curvefm.session.record import SessionRecord
 from curvefm.session.record_store import SessionStore
 from curvefm.spectral import Basis
@@ -60,9 +67,24 @@ class LiveSessions:
         """The lock to hold while using or changing session ``session_id``."""
         return self._locks[zlib.crc32(session_id.encode()) % len(self._locks)]
 
-    def get(self, session_id: str) -> LiveSession:
-        """The live session, rebuilt from its record when not cached. The caller holds its lock."""
-        return self._sessions.get(session_id, lambda: self._build(self.records.read(session_id)))
+    @contextmanager
+    def editing(self, session_id: str) -> Iterator[LiveSession]:
+        """The live session, up to date with its record, held for an edit: against this process's other threads
+        (the session's lock) and against other processes (the record's file lock) until the edit is written."""
+        with self.lock(session_id), self.records.locked(session_id):
+            yield self._current(session_id)
+
+    @contextmanager
+    def using(self, session_id: str) -> Iterator[LiveSession]:
+        """The live session, up to date with its record, held against this process's other threads (reading
+        needs no file lock: a record is replaced whole)."""
+        with self.lock(session_id):
+            yield self._current(session_id)
+
+    def prepare(self, session_id: str) -> None:
+        """Load the session's bases and build its solver now, so that its first edit answers at once."""
+        with self.using(session_id):
+            pass
 
     def peek(self, session_id: str) -> LiveSession | None:
         return self._sessions.peek(session_id)
@@ -85,6 +107,16 @@ class LiveSessions:
         """Forget every live session and stop the solvers' executor."""
         self._sessions.clear()
         self._executor.shutdown()
+
+    def _current(self, session_id: str) -> LiveSession:
+        """The live session as of its record on disk: built when not cached, brought up to date when another
+        process has written a later revision. The caller holds the session's lock."""
+        record = self.records.read(session_id)
+        live = self._sessions.get(session_id, lambda: self._build(record))
+        if live.record.revision != record.revision:
+            live.solver.sync({c.id: (*internal_paths(live.pair, c), c.spec.weight) for c in record.curves})
+            live.record = record
+        return live
 
     def _build(self, record: SessionRecord) -> LiveSession:
         need_M, need_N = basis_needs(record)

@@ -2,14 +2,22 @@
 
 Every write replaces the whole file atomically (:func:`curvefm.store.atomic_write`: temporary file, fsync,
 rename), so a reader, another process or a restarted API, sees the previous record or the new one, never half
-of one. Each write after the first increments the record's ``revision``. Writers of one record must be
-serialised by the caller (the API holds the session's lock, :class:`curvefm.session.live.LiveSessions`).
+of one. Each write after the first increments the record's ``revision``.
+
+Writers of one record, in any process on any machine sharing the directory, are serialised by the record's
+file lock (:meth:`SessionStore.locked`: an exclusive ``flock`` on ``<data>/sessions/.locks/<id>.lock``), held
+around read, check and write: every edit starts from the record as the last writer left it, whichever process
+that was. (A lock on the record file itself would not do: each write replaces that file by a new one.)
 """
 
 from __future__ import annotations
 
+import fcntl
+import os
 import re
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from curvefm.errors import Conflict, InvalidInput, NotFound
@@ -48,9 +56,25 @@ class SessionStore:
         """Write a new record as it is; an id in use is a conflict."""
         if not well_formed(record.id):
             raise InvalidInput(f"a session id is 1-64 letters, digits, '-' or '_', got '{record.id}'")
-        if self._path(record.id).exists():
-            raise Conflict(f"session '{record.id}' already exists")
-        self._write(record)
+        with self.locked(record.id, new=True):
+            if self._path(record.id).exists():
+                raise Conflict(f"session '{record.id}' already exists")
+            self._write(record)
+
+    @contextmanager
+    def locked(self, session_id: str, new: bool = False) -> Iterator[None]:
+        """Hold the record's file lock, waiting for any other holder in this or another process. Only a ``new``
+        session's lock may be taken before its record exists (so a request naming no session creates no file)."""
+        if not (self.exists(session_id) or (new and well_formed(session_id))):
+            raise UnknownSession(session_id)
+        folder = self.folder / ".locks"
+        folder.mkdir(parents=True, exist_ok=True)
+        descriptor = os.open(folder / f"{session_id}.lock", os.O_RDWR | os.O_CREAT, 0o600)
+        try:
+            fcntl.flock(descriptor, fcntl.LOCK_EX)
+            yield
+        finally:
+            os.close(descriptor)  # releases the lock
 
     def write(self, record: SessionRecord) -> SessionRecord:
         """Replace the stored record by ``record`` with the next revision and the current time; returns what
