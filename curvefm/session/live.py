@@ -9,7 +9,8 @@ load budget (50 sessions editing twice a second, about 10 ms an edit) an edit fi
 session's edit about 1 time in 65.
 
 Other processes may edit the same sessions (several API processes on one data directory). So every use starts
-by reading the record's revision from disk; a live session behind it is brought up to date
+by reading the record's revision from disk (:meth:`SessionStore.read_changed`); a live session behind it is
+brought up to date
 (:meth:`CurveMapSolver.sync <curvefm.fmap.CurveMapSolver.sync>` recomputes only the curves that changed), and an
 edit also holds the record's file lock (:meth:`SessionStore.locked`) from that read to its write.
 """
@@ -111,9 +112,9 @@ class LiveSessions:
     def _current(self, session_id: str) -> LiveSession:
         """The live session as of its record on disk: built when not cached, brought up to date when another
         process has written a later revision. The caller holds the session's lock."""
-        record = self.records.read(session_id)
-        live = self._sessions.get(session_id, lambda: self._build(record))
-        if live.record.revision != record.revision:
+        live = self._sessions.get(session_id, lambda: self._build(self.records.read(session_id)))
+        record = self.records.read_changed(session_id, live.record.revision)
+        if record is not None:
             live.solver.sync({c.id: (*internal_paths(live.pair, c), c.spec.weight) for c in record.curves})
             live.record = record
         return live

@@ -26,14 +26,16 @@ Samples = Annotated[int, Field(ge=2, le=10_000, description="samples per curve")
 
 
 def _vertex_path(value) -> array:
-    if isinstance(value, array) and value.typecode == "i":
-        return value
-    ids = np.asarray(value)
-    if ids.ndim != 1 or (ids.size and not np.issubdtype(ids.dtype, np.integer)):
-        raise ValueError("a path is a list of vertex ids (integers)")
-    if ids.size and (ids.min() < 0 or ids.max() > MAX_VERTEX_ID):
-        raise ValueError(f"a path's vertex ids are 0 to {MAX_VERTEX_ID}")
-    return array("i", ids.astype(np.int32).tobytes())
+    try:
+        if isinstance(value, array) and value.typecode == "i":
+            path = value
+        else:  # array() checks each id fits (a list is the fast input: pydantic hands the JSON over as one)
+            path = array("i", value.tolist() if isinstance(value, np.ndarray) else value)
+    except (TypeError, OverflowError):
+        raise ValueError(f"a path is a list of vertex ids, 0 to {MAX_VERTEX_ID}") from None
+    if path and np.frombuffer(path, dtype=np.int32).min() < 0:
+        raise ValueError(f"a path is a list of vertex ids, 0 to {MAX_VERTEX_ID}")
+    return path
 
 
 VertexPath = Annotated[
