@@ -247,3 +247,19 @@ def test_a_stored_curve_costs_its_paths_not_k_by_k_matrices(pair):
     tracemalloc.stop()
     path_bytes = 2 * 4 * np.mean([len(p) for p in paths])
     assert per_curve < path_bytes + 2000 < 3 * K * K * 8, (per_curve, path_bytes)
+
+
+def test_a_heavy_curve_removed_again_leaves_no_rounding_and_a_failed_solve_changes_nothing(pair):
+    M, bM, N, bN = pair
+    solver, _, paths = solver_with(pair, n_curves=2)
+    before = solver.C_MN.copy()
+    for weight in (1e12, 1e300):
+        heavy = solver.add_curve(paths[0][::-1], paths[1], weight=weight)
+        solver.remove_curve(heavy)
+        np.testing.assert_allclose(solver.C_MN, before, atol=1e-10 * np.abs(before).max())
+    with np.errstate(over="ignore"), pytest.raises(CurvefmError, match="finite"):
+        solver.add_curve(paths[0], paths[1], weight=1e308)  # the sums overflow: the solve refuses them
+    assert list(solver.curves) == ["c1", "c2"]
+    np.testing.assert_array_equal(solver.C_MN, before)
+    solver.add_curve(paths[0], paths[1])  # and the solver still works
+    assert not np.allclose(solver.C_MN, before)
