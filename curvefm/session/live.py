@@ -10,9 +10,9 @@ session's edit about 1 time in 65.
 
 Other processes may edit the same sessions (several API processes on one data directory). So every use starts
 by reading the record's revision from disk (:meth:`SessionStore.read_changed`); a live session behind it is
-brought up to date
-(:meth:`CurveMapSolver.sync <curvefm.fmap.CurveMapSolver.sync>` recomputes only the curves that changed), and an
-edit also holds the record's file lock (:meth:`SessionStore.locked`) from that read to its write.
+brought up to date (:meth:`CurveMapSolver.sync <curvefm.fmap.CurveMapSolver.sync>` recomputes only the curves
+that changed), and an edit also holds the record's file lock (:meth:`SessionStore.locked`) from that read to its
+write.
 """
 
 from __future__ import annotations
