@@ -10,8 +10,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from shapes import ellipsoid
 from test_service_errors import expect, snapshot
 
+from curvefm.geometry import save_mesh
 from curvefm.service.demo import demo_shapes
 
 K = 30
@@ -255,3 +257,12 @@ def bytes_written(server) -> int:
         if line.startswith("wchar:"):
             return int(line.split()[1])
     raise AssertionError("no wchar in /proc/PID/io")
+
+
+def test_a_limit_set_on_the_command_line_wins_over_the_environment(processes, tmp_path):
+    save_mesh(ellipsoid(), tmp_path / "ellipsoid.off")
+    api = processes.api(tmp_path / "data", env={"CURVEFM_MAX_K": "50"}, args=["--max-k", "5"])
+    shape = api.upload(tmp_path / "ellipsoid.off")
+    body = expect(api.client.post(f"/shapes/{shape}/bases", json={"k": 6}), 413, "too_large", "--max-k")
+    assert "the limit of 5 (max_k" in body["detail"], body
+    assert api.client.post(f"/shapes/{shape}/bases", json={"k": 5}).status_code == 202
