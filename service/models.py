@@ -21,8 +21,13 @@ class FieldProblem(BaseModel):
 
 
 class ErrorBody(BaseModel):
-    error: str = Field(description="invalid, not_found, conflict, too_large, internal or unavailable")
+    error: str = Field(
+        description="invalid, not_found, forbidden, conflict, too_large, too_many, internal or unavailable"
+    )
     detail: str = Field(description="what was wrong and what to do")
+    limit: str | None = Field(
+        None, description="too_large and too_many: the setting (environment variable) of the limit reached"
+    )
     available: list[str] | None = Field(None, description="installed plugins of the kind asked for")
     fields: list[FieldProblem] | None = Field(None, description="each field that failed validation (422)")
     error_id: str | None = Field(None, description="internal errors (500): the id the server log files it under")

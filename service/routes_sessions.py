@@ -6,7 +6,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, Query, Response
 
-from curvefm.errors import Conflict, InvalidInput
+from curvefm.errors import Conflict, InvalidInput, shown
 from curvefm.service.deps import JOB_ERRORS, ServicesDep, job_model
 from curvefm.service.errors import error_responses, require_plugin
 from curvefm.service.models import CurveEdit, JobInfoModel, MapResponse, RefineRequest, SessionSummary
@@ -122,7 +122,7 @@ def _parse_ids(text: str | None) -> list[int] | None:
     try:
         ids = [int(part) for part in text.split(",") if part.strip()]
     except ValueError:
-        raise InvalidInput(f"vertices must be comma-separated integers, got '{text}'") from None
+        raise InvalidInput(f"vertices must be comma-separated integers, got '{shown(text)}'") from None
     for vertex in ids:
         if not 0 <= vertex <= MAX_VERTEX_ID:
             raise InvalidInput(f"vertices: {vertex} is not a vertex id (0-based file ids, 0 to {MAX_VERTEX_ID})")

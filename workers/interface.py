@@ -19,7 +19,7 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal
 
-from curvefm.errors import Conflict, CurvefmError, InternalError, InvalidInput, NotFound
+from curvefm.errors import Conflict, CurvefmError, InternalError, InvalidInput, NotFound, shown
 
 if TYPE_CHECKING:
     from curvefm.workers.records import JobRecords
@@ -110,7 +110,7 @@ def one_line(text: str) -> str:
 
 
 def unknown_job(job_id: str) -> NotFound:
-    return NotFound(f"no job with id '{job_id}' (finished jobs are forgotten after a while)")
+    return NotFound(f"no job with id '{shown(job_id)}' (finished jobs are forgotten after a while)")
 
 
 def already_ended(info: JobInfo) -> Conflict:
