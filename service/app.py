@@ -14,7 +14,7 @@ from curvefm.service import routes_jobs, routes_sessions, routes_shapes
 from curvefm.service.deps import start_services
 from curvefm.service.errors import error_response, error_responses, install_error_handlers
 from curvefm.service.hints import install_hints
-from curvefm.service.settings import Settings
+from curvefm.service.settings import LOOPBACK_NAMES, Settings
 from curvefm.service.ui import mount_ui
 from curvefm.workers.factory import check_redis
 
@@ -99,15 +99,16 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     return app
 
 
-def serve_main(host: str = "127.0.0.1", port: int = 8000, log_level: str = "info", **overrides) -> None:
+def serve_main(host: str = LOOPBACK_NAMES[1], port: int = 8000, log_level: str = "info", **overrides) -> None:
     """Run the API with uvicorn until interrupted. ``overrides`` set :class:`Settings` by name (``data_dir``,
     ``redis_url``, ``demo``, the limits); ``None`` ones fall back to the environment (``CURVEFM_DATA``,
-    ``CURVEFM_REDIS_URL``, ``CURVEFM_MAX_UPLOAD_BYTES``, ...). Without Redis, jobs run in-process. Several
-    processes may serve one data directory: edits of a session are serialised by a lock file per session."""
+    ``CURVEFM_REDIS_URL``, ``CURVEFM_MAX_UPLOAD_BYTES``, ...); ``host`` chooses the default allowed hosts.
+    Without Redis, jobs run in-process. Several processes may serve one data directory: edits of a session are
+    serialised by a lock file per session."""
     import uvicorn
 
     logging.basicConfig(level=log_level.upper(), format="%(asctime)s %(levelname)s %(name)s: %(message)s")
-    settings = Settings.from_env(**overrides)
+    settings = Settings.from_env(bind_host=host, **overrides)
     if settings.redis_url:
         check_redis(settings.redis_url)  # a wrong password is one line (exit 2), not a traceback at startup
     uvicorn.run(create_app(settings), host=host, port=port, log_level=log_level)
