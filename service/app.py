@@ -13,9 +13,11 @@ from curvefm.errors import LimitExceeded
 from curvefm.service import routes_jobs, routes_sessions, routes_shapes
 from curvefm.service.deps import start_services
 from curvefm.service.errors import error_response, error_responses, install_error_handlers
+from curvefm.service.headers import SecurityHeaders, ui_csp
 from curvefm.service.hints import install_hints
+from curvefm.service.hosts import HostCheck
 from curvefm.service.settings import LOOPBACK_NAMES, Settings
-from curvefm.service.ui import mount_ui
+from curvefm.service.ui import INDEX_HTML, mount_ui
 from curvefm.workers.factory import check_redis
 
 DESCRIPTION = """Interactive curve-constrained functional maps between 3D shapes.
@@ -92,7 +94,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     install_error_handlers(app)
     install_hints(app)
+    # the last added runs first: headers on every answer, then the Host check, the body size
     app.add_middleware(BodySizeLimit, settings=settings)
+    app.add_middleware(HostCheck, allowed=settings.allowed_hosts)
+    app.add_middleware(SecurityHeaders, csp=ui_csp(INDEX_HTML))
     for module in (routes_shapes, routes_sessions, routes_jobs):
         app.include_router(module.router)
     mount_ui(app)  # last: its catch-all mount at / must not shadow the API routes

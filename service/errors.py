@@ -30,6 +30,7 @@ from curvefm.errors import (
     shown,
 )
 from curvefm.registry import Plugin
+from curvefm.service.headers import API_CSP, FIXED_HEADERS
 from curvefm.service.models import ErrorBody
 
 log = logging.getLogger("curvefm.service")
@@ -99,7 +100,10 @@ def internal_error_response(request: Request, exc: Exception) -> JSONResponse:
     log.error("internal error %s on %s %s", error_id, request.method, request.url.path, exc_info=exc)
     line = exc.message if isinstance(exc, InternalError) else "the server failed to handle this request"
     detail = f"{line} (error id {error_id}; the server log has the details)"
-    return JSONResponse({"error": InternalError.code, "detail": detail, "error_id": error_id}, status_code=500)
+    body = {"error": InternalError.code, "detail": detail, "error_id": error_id}
+    # answered by Starlette's outermost middleware, so the security headers middleware never sees it
+    headers = {**FIXED_HEADERS, "content-security-policy": API_CSP}
+    return JSONResponse(body, status_code=500, headers=headers)
 
 
 def install_error_handlers(app: FastAPI) -> None:

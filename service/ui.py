@@ -7,6 +7,7 @@ three.js is not committed: ``npm install`` (run by ``scripts/setup.sh``) puts th
 
 from __future__ import annotations
 
+import logging
 import os
 from pathlib import Path
 
@@ -15,8 +16,10 @@ from fastapi.responses import JSONResponse
 from fastapi.staticfiles import StaticFiles
 
 STATIC_DIR = Path(__file__).parent / "static"
+INDEX_HTML = STATIC_DIR / "index.html"
 VENDOR_URL = "/vendor/three"
 REPO_THREE_DIR = Path(__file__).resolve().parents[1] / "node_modules" / "three"
+log = logging.getLogger("curvefm.service")
 
 
 def three_dir() -> Path:
@@ -32,9 +35,10 @@ def mount_ui(app: FastAPI) -> None:
         app.mount(VENDOR_URL, StaticFiles(directory=three), name="vendor-three")
     else:
         message = (
-            f"three.js is not installed at {three}: run `npm install` in the repository root "
+            "three.js is not installed on the server: run `npm install` in the repository root "
             "(scripts/setup.sh does) or set CURVEFM_THREE_DIR to an installed 'three' package"
         )
+        log.warning("%s (looked in %s)", message, three)  # the path goes to the log, not to the page
 
         @app.get(VENDOR_URL + "/{path:path}", include_in_schema=False)
         def three_missing(path: str) -> JSONResponse:

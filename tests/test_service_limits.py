@@ -1,0 +1,152 @@
+"""Limits and hardening over HTTP, on real server processes (and real Redis and workers where the queue matters):
+quotas, the rate limit (shared by two API processes), the Host check, security headers, no paths or tokens
+leaking, the admins' audit route, and expiry of jobs and their result files."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import httpx
+import pytest
+from conftest import unavailable
+from ui_helpers import CHROMIUM, launch
+
+from curvefm.access import UserStore
+from curvefm.geometry import save_mesh
+from curvefm.service.demo import demo_shapes
+from curvefm.service.models import ErrorBody
+
+K = 20
+SECURITY_HEADERS = ("x-content-type-options", "x-frame-options", "referrer-policy", "content-security-policy")
+
+
+def error_body(response, status: int, kind: str, *words: str) -> dict:
+    assert response.status_code == status, response.text
+    body = response.json()
+    assert set(body) <= set(ErrorBody.model_fields) and ErrorBody.model_validate(body), body
+    assert body["error"] == kind, body
+    for word in words:
+        assert word in body["detail"], body
+    return body
+
+
+def add_users(data: Path, *names: str, admin: str | None = None) -> dict[str, str]:
+    """Tokens of new users ``names`` (and of an admin), made in the data directory before the server starts."""
+    store = UserStore(data)
+    tokens = {name: store.add(name) for name in names}
+    if admin:
+        tokens[admin] = store.add(admin, admin=True)
+    return tokens
+
+
+def as_user(api, token: str) -> httpx.Client:
+    return httpx.Client(base_url=api.url, timeout=120, headers={"Authorization": f"Bearer {token}"})
+
+
+def demo_files(folder: Path) -> list[Path]:
+    paths = []
+    for mesh in demo_shapes():
+        paths.append(folder / f"{mesh.name}.off")
+        save_mesh(mesh, paths[-1])
+    return paths
+
+
+def upload(client: httpx.Client, path: Path) -> httpx.Response:
+    with open(path, "rb") as f:
+        return client.post("/shapes", files={"file": (path.name, f)})
+
+
+def wait_job(client: httpx.Client, job_id: str, timeout: float = 120) -> dict:
+    deadline = time.monotonic() + timeout
+    while (info := client.get(f"/jobs/{job_id}").raise_for_status().json())["state"] not in (
+        "finished", "failed", "canceled"
+    ):
+        assert time.monotonic() < deadline, info
+        time.sleep(0.1)
+    return info
+
+
+# -- Host, headers, leaks --------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def server(module_processes, tmp_path_factory):
+    """An embedded-mode API with a user and an admin, and a CLI-made user in the audit log."""
+    data = tmp_path_factory.mktemp("limits") / "data"
+    tokens = add_users(data, "alice", admin="root")
+    cli = [sys.executable, "-m", "curvefm.cli", "users", "add", "carol", "--data", str(data)]
+    subprocess.run(cli, check=True, capture_output=True)
+    api = module_processes.api(data, env={"CURVEFM_RATE_LIMIT": ""})  # the default limit, as a browser meets it
+    api.data, api.tokens = data, tokens
+    return api
+
+
+def test_a_foreign_host_gets_400(server):
+    port = server.url.rsplit(":", 1)[1]
+    for host in ("localhost", f"localhost:{port}", "127.0.0.1", f"[::1]:{port}"):
+        assert server.client.get("/health", headers={"Host": host}).status_code == 200, host
+    for path in ("/health", "/", "/shapes"):
+        response = server.client.get(path, headers={"Host": "rebound.attacker.example"})
+        error_body(response, 400, "invalid", "rebound.attacker.example", "CURVEFM_ALLOWED_HOSTS")
+    long_host = "a" * 5000 + ".example"
+    assert len(server.client.get("/health", headers={"Host": long_host}).text) < 500  # the echo is cut short
+
+
+def test_allowed_hosts_option(processes, tmp_path):
+    api = processes.api(tmp_path / "data", args=("--allowed-hosts", "127.0.0.1, Lab.Example.org"))
+    assert api.client.get("/health", headers={"Host": "lab.example.org:8443"}).status_code == 200
+    error_body(api.client.get("/health", headers={"Host": "localhost"}), 400, "invalid", "localhost")
+    anyone = processes.api(tmp_path / "data2", args=("--allowed-hosts", "*"))
+    assert anyone.client.get("/health", headers={"Host": "anything.example"}).status_code == 200
+
+
+def test_security_headers_on_ui_and_api_answers(server):
+    answers = [
+        server.client.get("/"),
+        server.client.get("/app.js"),
+        server.client.get("/vendor/three/build/three.module.js"),
+        server.client.get("/health"),
+        server.client.get("/plugins"),
+        server.client.get("/shapes/no-such-shape"),
+        server.client.get("/health", headers={"Host": "elsewhere.example"}),
+    ]
+    assert [a.status_code for a in answers] == [200, 200, 200, 200, 200, 404, 400]
+    for answer in answers:
+        assert all(name in answer.headers for name in SECURITY_HEADERS), (answer.request.url, answer.headers)
+        assert answer.headers["x-content-type-options"] == "nosniff"
+        assert answer.headers["x-frame-options"] == "DENY"
+        assert answer.headers["referrer-policy"] == "no-referrer"
+        assert "frame-ancestors 'none'" in answer.headers["content-security-policy"]
+    csp = answers[0].headers["content-security-policy"]
+    assert "default-src 'self'" in csp and "unsafe-inline" not in csp and "unsafe-eval" not in csp
+
+
+def test_the_ui_runs_under_its_content_security_policy(server):
+    """In Chromium: the page's scripts (import map, modules, three.js) load and nothing violates the policy."""
+    if not CHROMIUM.is_file():
+        unavailable(f"browser tests need Chromium at {CHROMIUM}")
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as playwright:
+        browser = launch(playwright)
+        page = browser.new_page()
+        messages = []
+        page.on("console", lambda message: messages.append(message.text))
+        page.add_init_script(
+            "document.addEventListener('securitypolicyviolation', (e) => "
+            "(window.cspViolations = window.cspViolations || []).push(e.violatedDirective + ' ' + e.blockedURI))"
+        )
+        page.goto(server.url + "/")
+        page.wait_for_function("() => window.curvefm !== undefined", timeout=30_000)
+        page.wait_for_function("() => document.querySelectorAll('#tracer-select option').length > 0", timeout=30_000)
+        violations = page.evaluate("window.cspViolations || []")
+        browser.close()
+    assert not violations, violations
+    assert not [m for m in messages if "Content Security Policy" in m], messages
+
+
+def test_echoed_ids_are_cut_short(server):
+    for path in ("/shapes/" + "f" * 10_000, "/sessions/" + "s" * 10_000, "/jobs/" + "j" * 10_000):
+        body = error_body(server.client.get(path), 404, "not_found")
+        assert len(body["detail"]) < 300, body["detail"][:300]
