@@ -16,8 +16,9 @@ from curvefm.service.errors import error_response, error_responses, install_erro
 from curvefm.service.headers import SecurityHeaders, ui_csp
 from curvefm.service.hints import install_hints
 from curvefm.service.hosts import HostCheck
+from curvefm.service.ratelimit import RateLimit, make_buckets
 from curvefm.service.settings import LOOPBACK_NAMES, Settings
-from curvefm.service.ui import INDEX_HTML, mount_ui
+from curvefm.service.ui import INDEX_HTML, is_ui_path, mount_ui
 from curvefm.workers.factory import check_redis
 
 DESCRIPTION = """Interactive curve-constrained functional maps between 3D shapes.
@@ -75,6 +76,7 @@ class BodySizeLimit:
 
 def create_app(settings: Settings | None = None) -> FastAPI:
     settings = settings or Settings.from_env()
+    buckets = make_buckets(settings)
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
@@ -88,20 +90,28 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             yield
         finally:
             services.close()
+            await buckets.close()
 
     app = FastAPI(
         title="curvefm", version="0.1.0", description=DESCRIPTION, lifespan=lifespan, responses=error_responses(500)
     )
     install_error_handlers(app)
     install_hints(app)
-    # the last added runs first: headers on every answer, then the Host check, the body size
+    # the last added runs first: headers on every answer, then the Host check, the rate limit, the body size
     app.add_middleware(BodySizeLimit, settings=settings)
+    if settings.rate_limit:
+        app.add_middleware(RateLimit, settings=settings, buckets=buckets, exempt=is_unlimited)
     app.add_middleware(HostCheck, allowed=settings.allowed_hosts)
     app.add_middleware(SecurityHeaders, csp=ui_csp(INDEX_HTML))
     for module in (routes_shapes, routes_sessions, routes_jobs):
         app.include_router(module.router)
     mount_ui(app)  # last: its catch-all mount at / must not shadow the API routes
     return app
+
+
+def is_unlimited(path: str) -> bool:
+    """``/health`` and the UI's static files are not rate limited."""
+    return path == "/health" or is_ui_path(path)
 
 
 def serve_main(host: str = LOOPBACK_NAMES[1], port: int = 8000, log_level: str = "info", **overrides) -> None:

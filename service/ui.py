@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 import os
+from functools import cache
 from pathlib import Path
 
 from fastapi import FastAPI
@@ -25,6 +26,16 @@ log = logging.getLogger("curvefm.service")
 def three_dir() -> Path:
     """Where the three.js package is: ``CURVEFM_THREE_DIR``, else ``node_modules/three`` of the checkout."""
     return Path(os.environ.get("CURVEFM_THREE_DIR") or REPO_THREE_DIR)
+
+
+@cache
+def _ui_top_names() -> frozenset[str]:
+    return frozenset([path.name for path in STATIC_DIR.iterdir()] + [VENDOR_URL.split("/")[1]])
+
+
+def is_ui_path(path: str) -> bool:
+    """Whether ``path`` is the page or one of its static files (which need no token and are not limited)."""
+    return path == "/" or path.split("/", 2)[1] in _ui_top_names()
 
 
 def mount_ui(app: FastAPI) -> None:

@@ -69,6 +69,43 @@ def wait_job(client: httpx.Client, job_id: str, timeout: float = 120) -> dict:
     return info
 
 
+# -- rate limit ------------------------------------------------------------------------------------------------
+def test_rate_limit_answers_429_with_retry_after_per_token(processes, tmp_path):
+    tokens = add_users(tmp_path / "data", "alice", "bob")
+    env = {"CURVEFM_RATE_LIMIT": "0.5", "CURVEFM_RATE_BURST": "3"}
+    api = processes.api(tmp_path / "data", env=env)
+    alice, bob = as_user(api, tokens["alice"]), as_user(api, tokens["bob"])
+
+    statuses = [alice.get("/plugins").status_code for _ in range(4)]
+    assert statuses[:3] == [200, 200, 200] and statuses[3] == 429, statuses
+    limited = alice.get("/shapes")
+    body = error_body(limited, 429, "too_many", "CURVEFM_RATE_LIMIT", "CURVEFM_RATE_BURST")
+    assert body["limit"] == "CURVEFM_RATE_LIMIT"
+    retry_after = int(limited.headers["retry-after"])
+    assert 1 <= retry_after <= 2
+    assert bob.get("/plugins").status_code == 200  # another token, another bucket
+    assert {alice.get(path).status_code for path in ["/health", "/", "/app.js"] * 5} == {200}  # never limited
+    time.sleep(retry_after)
+    assert alice.get("/plugins").status_code == 200
+
+
+def test_two_api_processes_share_the_rate_limit_through_redis(processes, redis_url, redis_prefix, tmp_path):
+    rate, burst = 0.5, 6
+    env = {"CURVEFM_QUEUE_PREFIX": redis_prefix, "CURVEFM_RATE_LIMIT": str(rate), "CURVEFM_RATE_BURST": str(burst)}
+    apis = [processes.api(tmp_path / "data", redis_url, env=env) for _ in range(2)]
+    headers = {"Authorization": "Bearer cfm_one-token-for-both-processes"}
+    started = time.monotonic()
+    answered = [[], []]
+    for i in range(4 * burst):
+        api = apis[i % 2]
+        answered[i % 2].append(api.client.get("/plugins", headers=headers).status_code)
+    elapsed = time.monotonic() - started
+    allowed = sum(statuses.count(200) for statuses in answered)
+    assert allowed <= burst + int(elapsed * rate) + 1, (answered, elapsed)  # one process alone would allow burst
+    assert all(200 in statuses and 429 in statuses for statuses in answered), answered
+    assert apis[0].client.get("/plugins").status_code == 200  # without that token: another bucket
+
+
 # -- Host, headers, leaks --------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def server(module_processes, tmp_path_factory):
