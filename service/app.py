@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
@@ -16,6 +15,7 @@ from curvefm.service.errors import error_response, error_responses, install_erro
 from curvefm.service.headers import SecurityHeaders, ui_csp
 from curvefm.service.hints import install_hints
 from curvefm.service.hosts import HostCheck
+from curvefm.service.logs import log_config
 from curvefm.service.ratelimit import RateLimit, make_buckets
 from curvefm.service.settings import LOOPBACK_NAMES, Settings
 from curvefm.service.ui import INDEX_HTML, is_ui_path, mount_ui
@@ -122,8 +122,8 @@ def serve_main(host: str = LOOPBACK_NAMES[1], port: int = 8000, log_level: str =
     serialised by a lock file per session."""
     import uvicorn
 
-    logging.basicConfig(level=log_level.upper(), format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     settings = Settings.from_env(bind_host=host, **overrides)
     if settings.redis_url:
         check_redis(settings.redis_url)  # a wrong password is one line (exit 2), not a traceback at startup
-    uvicorn.run(create_app(settings), host=host, port=port, log_level=log_level)
+    app = create_app(settings)
+    uvicorn.run(app, host=host, port=port, log_level=log_level, log_config=log_config(log_level))

@@ -183,6 +183,26 @@ def test_the_ui_runs_under_its_content_security_policy(server):
     assert not [m for m in messages if "Content Security Policy" in m], messages
 
 
+def test_health_shows_no_path(server):
+    response = server.client.get("/health")
+    assert response.status_code == 200
+    assert set(response.json()) == {"status", "jobs"}
+    assert str(server.data) not in response.text and "/" not in response.text
+
+
+def test_a_login_token_stays_out_of_the_server_log(server):
+    token = server.tokens["alice"]
+    assert server.client.get(f"/?token={token}").status_code == 200
+    assert server.client.get(f"/?session=x&token={token}&view=1").status_code == 200
+    assert server.client.get("/plugins", headers={"Authorization": f"Bearer {token}"}).status_code == 200
+    deadline = time.monotonic() + 10
+    while "view=1" not in (log := server.log.read_text()):  # the access log line of the second request
+        assert time.monotonic() < deadline, log[-2000:]
+        time.sleep(0.1)
+    assert token not in log
+    assert "/?token=[redacted]" in log and "token=[redacted]&view=1" in log
+
+
 def test_echoed_ids_are_cut_short(server):
     for path in ("/shapes/" + "f" * 10_000, "/sessions/" + "s" * 10_000, "/jobs/" + "j" * 10_000):
         body = error_body(server.client.get(path), 404, "not_found")

@@ -13,6 +13,6 @@ No HTTP and no Redis here: the service decides how a token arrives and what a us
 """
 
 from curvefm.access.audit import AuditLog
-from curvefm.access.users import TOKEN_PREFIX, User, UserStore
+from curvefm.access.users import TOKEN_PREFIX, User, UserStore, redact_tokens
 
-__all__ = ["AuditLog", "TOKEN_PREFIX", "User", "UserStore"]
+__all__ = ["AuditLog", "TOKEN_PREFIX", "User", "UserStore", "redact_tokens"]

@@ -33,6 +33,7 @@ NAME_PATTERN = re.compile(r"[A-Za-z0-9_.-]{1,64}")
 FORMAT_VERSION = 1
 # Longer than any token we make: anything longer is refused before hashing.
 MAX_TOKEN_LENGTH = 128
+_TOKEN = re.compile(re.escape(TOKEN_PREFIX) + r"[A-Za-z0-9_-]{20,}")
 T = TypeVar("T")
 
 
@@ -201,6 +202,11 @@ def _record(name: str, admin: bool, token: str) -> dict:
     now = timestamp()
     return {"name": name, "admin": bool(admin), "token_sha256": _hash(token), "created_at": now,
             "token_rotated_at": now}
+
+
+def redact_tokens(text: str) -> str:
+    """``text`` with every token in it replaced by ``cfm_[redacted]``."""
+    return _TOKEN.sub(TOKEN_PREFIX + "[redacted]", text)
 
 
 def _new_token() -> str:
