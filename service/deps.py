@@ -9,6 +9,7 @@ from typing import Annotated
 from fastapi import Depends, Request
 
 from curvefm.service.errors import error_responses, require_plugin
+from curvefm.service.expiry import start_expiry
 from curvefm.service.models import JobInfoModel
 from curvefm.service.settings import Settings
 from curvefm.session import LiveSessions, SessionEditor, SessionStore
@@ -40,13 +41,21 @@ class Services:
 def start_services(settings: Settings) -> Services:
     store = Store(settings.data_dir)
     queue = make_queue(
-        settings.redis_url, store.root, settings.queue_prefix, settings.job_retries, settings.embedded_workers
+        settings.redis_url,
+        store.root,
+        settings.queue_prefix,
+        settings.job_retries,
+        settings.embedded_workers,
+        settings.job_ttl_s,
     )
     records = SessionStore(store.root)
     live = LiveSessions(store, records)
     # require_plugin's errors list the installed plugins
     sessions = SessionEditor(records, live, find_plugin=require_plugin, limits=settings.session_limits)
-    return Services(settings, store, queue, records, live, sessions)
+    services = Services(settings, store, queue, records, live, sessions)
+    expiry = start_expiry(queue, store.root / "results", settings.job_ttl_s, settings.expiry_interval_s)
+    services.stop_events.append(expiry)
+    return services
 
 
 def get_services(request: Request) -> Services:

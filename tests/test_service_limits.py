@@ -62,7 +62,7 @@ def upload(client: httpx.Client, path: Path) -> httpx.Response:
 def wait_job(client: httpx.Client, job_id: str, timeout: float = 120) -> dict:
     deadline = time.monotonic() + timeout
     while (info := client.get(f"/jobs/{job_id}").raise_for_status().json())["state"] not in (
-        "finished", "failed", "canceled"
+        "finished", "failed", "canceled", "lost"
     ):
         assert time.monotonic() < deadline, info
         time.sleep(0.1)
@@ -207,3 +207,28 @@ def test_echoed_ids_are_cut_short(server):
     for path in ("/shapes/" + "f" * 10_000, "/sessions/" + "s" * 10_000, "/jobs/" + "j" * 10_000):
         body = error_body(server.client.get(path), 404, "not_found")
         assert len(body["detail"]) < 300, body["detail"][:300]
+
+
+# -- expiry ----------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("mode", ["embedded", "redis"])
+def test_ended_jobs_and_their_result_files_expire(mode, processes, redis_url, redis_prefix, tmp_path):
+    ttl = 5
+    env = {"CURVEFM_JOB_TTL": str(ttl), "CURVEFM_EXPIRY_INTERVAL": "0.5", "CURVEFM_QUEUE_PREFIX": redis_prefix}
+    api = processes.api(tmp_path / "data", redis_url if mode == "redis" else None, env=env)
+    if mode == "redis":
+        processes.worker(redis_url, redis_prefix, "expiry-worker")
+    _, session = api.demo_pair(tmp_path, K)
+    api.client.post(f"/sessions/{session}/curves", json={"source": [0, 100], "target": [0, 100]}).raise_for_status()
+    job = api.client.post(f"/sessions/{session}/refine", json={}).raise_for_status().json()
+    finished = api.wait_job(job["id"])
+    assert finished["state"] == "finished", finished
+    results, record = tmp_path / "data" / "results" / job["id"], tmp_path / "data" / "jobs" / f"{job['id']}.json"
+    link = finished["links"]["map_target_to_source.txt"]
+    assert api.client.get(link).status_code == 200 and results.is_dir() and record.is_file()
+
+    deadline = time.monotonic() + ttl + 15
+    while results.exists() or record.exists() or api.client.get(f"/jobs/{job['id']}").status_code != 404:
+        assert time.monotonic() < deadline, f"job {job['id']} or its files outlived the TTL of {ttl} s"
+        time.sleep(0.25)
+    error_body(api.client.get(link), 404, "not_found")
+    assert api.client.get(f"/sessions/{session}").status_code == 200  # sessions do not expire

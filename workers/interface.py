@@ -30,6 +30,8 @@ RETRYABLE_STATES: tuple[JobState, ...] = ("lost", "failed", "canceled")
 JOB_KINDS = ("basis", "refine")
 """What :meth:`JobQueue.submit` runs: ``curvefm.workers.jobs.JOB_FUNCTIONS[kind]``."""
 WORKER_LOST = "worker_lost"
+KEEP_ENDED_S = 7 * 24 * 3600.0
+"""How long an ended job's record is kept by default (the service's ``CURVEFM_JOB_TTL``)."""
 
 
 @dataclass(frozen=True)
