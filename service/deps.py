@@ -8,9 +8,11 @@ from typing import Annotated
 
 from fastapi import Depends, Request
 
+from curvefm.access import Usage, UserStore
 from curvefm.service.errors import error_responses, require_plugin
 from curvefm.service.expiry import start_expiry
 from curvefm.service.models import JobInfoModel
+from curvefm.service.quotas import Quotas
 from curvefm.service.settings import Settings
 from curvefm.session import LiveSessions, SessionEditor, SessionStore
 from curvefm.store import Store, params_key
@@ -29,6 +31,8 @@ class Services:
     records: SessionStore
     live: LiveSessions
     sessions: SessionEditor
+    users: UserStore
+    quotas: Quotas
     stop_events: list[threading.Event] = field(default_factory=list)
 
     def close(self) -> None:
@@ -52,7 +56,8 @@ def start_services(settings: Settings) -> Services:
     live = LiveSessions(store, records)
     # require_plugin's errors list the installed plugins
     sessions = SessionEditor(records, live, find_plugin=require_plugin, limits=settings.session_limits)
-    services = Services(settings, store, queue, records, live, sessions)
+    quotas = Quotas(settings, Usage(store.root), store, records, queue)
+    services = Services(settings, store, queue, records, live, sessions, UserStore(store.root), quotas)
     expiry = start_expiry(queue, store.root / "results", settings.job_ttl_s, settings.expiry_interval_s)
     services.stop_events.append(expiry)
     return services

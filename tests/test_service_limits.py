@@ -15,9 +15,10 @@ from conftest import unavailable
 from ui_helpers import CHROMIUM, launch
 
 from curvefm.access import UserStore
-from curvefm.geometry import save_mesh
+from curvefm.geometry import load_mesh, save_mesh
 from curvefm.service.demo import demo_shapes
 from curvefm.service.models import ErrorBody
+from curvefm.service.quotas import stored_bytes
 
 K = 20
 SECURITY_HEADERS = ("x-content-type-options", "x-frame-options", "referrer-policy", "content-security-policy")
@@ -67,6 +68,48 @@ def wait_job(client: httpx.Client, job_id: str, timeout: float = 120) -> dict:
         assert time.monotonic() < deadline, info
         time.sleep(0.1)
     return info
+
+
+# -- quotas ----------------------------------------------------------------------------------------------------
+def test_quotas_answer_413_and_429_naming_the_limit(processes, redis_url, redis_prefix, tmp_path):
+    """Bytes (413), concurrent jobs and sessions (429); admins are exempt. Redis mode: jobs wait for a worker,
+    so 'queued' lasts until the test starts one."""
+    files = demo_files(tmp_path)
+    one_shape = stored_bytes(load_mesh(files[0]))
+    tokens = add_users(tmp_path / "data", "alice", admin="root")
+    env = {
+        "CURVEFM_QUEUE_PREFIX": redis_prefix,
+        "CURVEFM_QUOTA_BYTES": str(one_shape * 3 // 2),
+        "CURVEFM_QUOTA_JOBS": "1",
+        "CURVEFM_QUOTA_SESSIONS": "1",
+    }
+    api = processes.api(tmp_path / "data", redis_url, env=env)
+    alice, root = as_user(api, tokens["alice"]), as_user(api, tokens["root"])
+
+    first = upload(alice, files[0])
+    assert first.status_code == 201, first.text
+    body = error_body(upload(alice, files[1]), 413, "too_large", "CURVEFM_QUOTA_BYTES", str(one_shape * 3 // 2))
+    assert body["limit"] == "CURVEFM_QUOTA_BYTES"
+    assert upload(alice, files[0]).status_code == 200  # her own shape again: nothing new is stored
+    exempt = upload(root, files[1])  # admins are exempt
+    assert exempt.status_code == 201, exempt.text
+    ids = [first.json()["id"], exempt.json()["id"]]
+
+    queued = alice.post(f"/shapes/{ids[0]}/bases", json={"k": K}).raise_for_status().json()
+    body = error_body(alice.post(f"/shapes/{ids[1]}/bases", json={"k": K}), 429, "too_many", "CURVEFM_QUOTA_JOBS")
+    assert body["limit"] == "CURVEFM_QUOTA_JOBS"
+    assert root.post(f"/shapes/{ids[1]}/bases", json={"k": K}).status_code == 202
+    processes.worker(redis_url, redis_prefix, "quota-worker")
+    assert wait_job(alice, queued["id"])["state"] == "finished"
+    second = alice.post(f"/shapes/{ids[1]}/bases", json={"k": K})  # one job at a time: the first one ended
+    assert second.status_code == 202, second.text
+    assert wait_job(alice, second.json()["id"])["state"] == "finished"
+
+    session = {"source": ids[0], "target": ids[1], "k": K}
+    assert alice.post("/sessions", json=session).status_code == 201
+    body = error_body(alice.post("/sessions", json=session), 429, "too_many", "CURVEFM_QUOTA_SESSIONS")
+    assert body["limit"] == "CURVEFM_QUOTA_SESSIONS"
+    assert [root.post("/sessions", json=session).status_code for _ in range(2)] == [201, 201]
 
 
 # -- rate limit ------------------------------------------------------------------------------------------------

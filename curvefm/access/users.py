@@ -11,20 +11,18 @@ secret that cannot be guessed, and a plain SHA-256 lets :meth:`UserStore.authent
 
 from __future__ import annotations
 
-import contextlib
-import fcntl
 import hashlib
 import hmac
 import json
 import os
 import re
 import secrets
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TypeVar
 
-from curvefm.access.common import access_dir, timestamp
+from curvefm.access.common import access_dir, locked, timestamp
 from curvefm.errors import Conflict, InternalError, InvalidInput, NotFound
 from curvefm.store import atomic_write
 
@@ -144,7 +142,7 @@ class UserStore:
 
     def _update(self, change: Callable[[list[dict]], T]) -> T:
         """Under the lock: read the records, let ``change`` edit them in place, write them back if it did."""
-        with self._locked():
+        with locked(self._lock_path):
             before = list(_read(self.path).records) if self.path.exists() else []
             records = [dict(r) for r in before]
             result = change(records)
@@ -152,15 +150,6 @@ class UserStore:
                 data = json.dumps({"version": FORMAT_VERSION, "users": records}, indent=1) + "\n"
                 atomic_write(self.path, data.encode())
             return result
-
-    @contextlib.contextmanager
-    def _locked(self) -> Iterator[None]:
-        fd = os.open(self._lock_path, os.O_RDWR | os.O_CREAT, 0o600)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX)
-            yield
-        finally:
-            os.close(fd)  # closing releases the lock
 
 
 def _read(path: Path) -> _Snapshot:
