@@ -9,7 +9,7 @@ from fastapi import FastAPI
 from starlette.exceptions import HTTPException
 
 from curvefm.errors import LimitExceeded
-from curvefm.service import routes_jobs, routes_sessions, routes_shapes
+from curvefm.service import routes_audit, routes_jobs, routes_sessions, routes_shapes
 from curvefm.service.deps import start_services
 from curvefm.service.errors import error_response, error_responses, install_error_handlers
 from curvefm.service.headers import SecurityHeaders, ui_csp
@@ -103,7 +103,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.add_middleware(RateLimit, settings=settings, buckets=buckets, exempt=is_unlimited)
     app.add_middleware(HostCheck, allowed=settings.allowed_hosts)
     app.add_middleware(SecurityHeaders, csp=ui_csp(INDEX_HTML))
-    for module in (routes_shapes, routes_sessions, routes_jobs):
+    for module in (routes_shapes, routes_sessions, routes_jobs, routes_audit):
         app.include_router(module.router)
     mount_ui(app)  # last: its catch-all mount at / must not shadow the API routes
     return app

@@ -8,7 +8,7 @@ from typing import Annotated
 
 from fastapi import Depends, Request
 
-from curvefm.access import Usage, UserStore
+from curvefm.access import AuditLog, Usage, UserStore
 from curvefm.service.errors import error_responses, require_plugin
 from curvefm.service.expiry import start_expiry
 from curvefm.service.models import JobInfoModel
@@ -32,6 +32,7 @@ class Services:
     live: LiveSessions
     sessions: SessionEditor
     users: UserStore
+    audit: AuditLog
     quotas: Quotas
     stop_events: list[threading.Event] = field(default_factory=list)
 
@@ -57,7 +58,8 @@ def start_services(settings: Settings) -> Services:
     # require_plugin's errors list the installed plugins
     sessions = SessionEditor(records, live, find_plugin=require_plugin, limits=settings.session_limits)
     quotas = Quotas(settings, Usage(store.root), store, records, queue)
-    services = Services(settings, store, queue, records, live, sessions, UserStore(store.root), quotas)
+    users, audit = UserStore(store.root), AuditLog(store.root)
+    services = Services(settings, store, queue, records, live, sessions, users, audit, quotas)
     expiry = start_expiry(queue, store.root / "results", settings.job_ttl_s, settings.expiry_interval_s)
     services.stop_events.append(expiry)
     return services

@@ -33,6 +33,14 @@ class ErrorBody(BaseModel):
     error_id: str | None = Field(None, description="internal errors (500): the id the server log files it under")
 
 
+class AuditEvent(BaseModel):
+    time: str = Field(description="UTC, ISO 8601 with milliseconds")
+    user: str = Field(description="who (a user name, or 'cli' for the command line)")
+    action: str = Field(description="what, e.g. session.share or user.add")
+    target: str = Field(description="to what: an id or a name")
+    detail: dict = Field(default_factory=dict)
+
+
 class BasisInfo(BaseModel):
     plugin: str
     k: int

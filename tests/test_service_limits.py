@@ -252,6 +252,21 @@ def test_echoed_ids_are_cut_short(server):
         assert len(body["detail"]) < 300, body["detail"][:300]
 
 
+# -- audit -----------------------------------------------------------------------------------------------------
+def test_the_audit_log_is_for_admins(server):
+    root, alice = as_user(server, server.tokens["root"]), as_user(server, server.tokens["alice"])
+    events = root.get("/audit").raise_for_status().json()
+    assert {"user": "cli", "action": "user.add", "target": "carol"}.items() <= events[-1].items(), events
+    assert root.get("/audit", params={"user": "cli", "limit": 1}).json() == events[-1:]
+    assert root.get("/audit", params={"user": "nobody"}).json() == []
+    assert root.get("/audit", params={"since": "2999-01-01T00:00:00"}).json() == []
+    error_body(root.get("/audit", params={"since": "yesterday"}), 422, "invalid", "since")
+    error_body(root.get("/audit", params={"limit": 0}), 422, "invalid", "limit")
+    error_body(alice.get("/audit"), 403, "forbidden", "admins")
+    assert server.client.get("/audit").status_code == 401
+    assert as_user(server, "cfm_" + "x" * 43).get("/audit").status_code == 401
+
+
 # -- expiry ----------------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("mode", ["embedded", "redis"])
 def test_ended_jobs_and_their_result_files_expire(mode, processes, redis_url, redis_prefix, tmp_path):
