@@ -43,13 +43,17 @@ def median_ms(fn, repeat: int) -> float:
     return 1e3 * statistics.median(times)
 
 
-def start_server(data: Path) -> tuple[subprocess.Popen, str]:
-    """An embedded-mode ``curvefm serve`` on a free port with data in ``data``: (process, base url)."""
+def start_server(
+    data: Path, args: tuple[str, ...] = ("--rate-limit", "0"), env: dict[str, str] | None = None
+) -> tuple[subprocess.Popen, str]:
+    """``curvefm serve`` (embedded jobs unless ``args`` name a Redis) on a free port with data in ``data``:
+    (process, base url). By default without a rate limit: benchmarks load the server from one client."""
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    command = [sys.executable, "-m", "curvefm.service", "--port", str(port), "--data", str(data)]
-    server = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    command = [sys.executable, "-m", "curvefm.service", "--port", str(port), "--data", str(data), *args]
+    environment = {**os.environ, **(env or {})}
+    server = subprocess.Popen(command, env=environment, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     url = f"http://127.0.0.1:{port}"
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline:

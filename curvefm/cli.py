@@ -121,11 +121,12 @@ def cmd_reproduce(args) -> int:
 
 def cmd_serve(args) -> int:
     from curvefm.service.app import serve_main
-    from curvefm.service.settings import LIMITS
+    from curvefm.service.settings import LIMITS, parsed_setting
 
-    limits = {name: getattr(args, name) for name in LIMITS}
-    serve_main(args.host, args.port, args.log_level, data_dir=args.data, redis_url=args.redis_url, demo=args.demo,
-               **limits)
+    settings = {name: getattr(args, name) for name in (*SERVE_SETTINGS, *LIMITS)}
+    if args.allowed_hosts is not None:
+        settings["allowed_hosts"] = parsed_setting("allowed_hosts", args.allowed_hosts, "--allowed-hosts")
+    serve_main(args.host, args.port, args.log_level, data_dir=args.data, **settings)
     return 0
 
 
@@ -188,6 +189,30 @@ def _audit(args, action: str, target: str, detail: dict | None = None) -> None:
     AuditLog(args.data).record("cli", action, target, detail)
 
 
+SERVE_SETTINGS = (
+    "redis_url", "demo", "allowed_hosts", "quota_bytes", "quota_sessions", "quota_jobs", "rate_limit", "rate_burst",
+    "job_ttl_s",
+)
+"""The ``serve`` options that are service settings besides the request limits (``None``: from the environment)."""
+
+
+def add_limit_options(s: argparse.ArgumentParser) -> None:
+    s.add_argument("--allowed-hosts", metavar="HOST[,HOST...]",
+                   help="Host header values to answer, '*' for any (default $CURVEFM_ALLOWED_HOSTS, else the loopback "
+                        "names, plus this machine's names and the bound address when --host is not a loopback one)")
+    s.add_argument("--quota-bytes", type=int, help="per user: stored shapes and results (default $CURVEFM_QUOTA_BYTES "
+                                                   "or 2 GiB; 0: no limit)")
+    s.add_argument("--quota-sessions", type=int, help="per user (default $CURVEFM_QUOTA_SESSIONS or 100; 0: no limit)")
+    s.add_argument("--quota-jobs", type=int, help="per user, queued or running at once (default $CURVEFM_QUOTA_JOBS "
+                                                  "or 4; 0: no limit)")
+    s.add_argument("--rate-limit", type=float, help="requests per second per token (default $CURVEFM_RATE_LIMIT or "
+                                                    "20; 0: no limit)")
+    s.add_argument("--rate-burst", type=int, help="requests at once per token (default $CURVEFM_RATE_BURST or 40)")
+    s.add_argument("--job-ttl", dest="job_ttl_s", type=float, metavar="SECONDS",
+                   help="delete ended jobs and their result files this long after they ended (default "
+                        "$CURVEFM_JOB_TTL or 7 days)")
+
+
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="curvefm", description=__doc__)
     data = argparse.ArgumentParser(add_help=False)
@@ -237,6 +262,7 @@ def parser() -> argparse.ArgumentParser:
     for limit in fields(SessionLimits):
         s.add_argument(f"--{limit.name.replace('_', '-')}", type=int,
                        help=f"{limit.metadata['help']} (default $CURVEFM_{limit.name.upper()} or {limit.default})")
+    add_limit_options(s)
     s.add_argument("--log-level", default="info")
     s.set_defaults(run=cmd_serve)
 

@@ -7,7 +7,9 @@ statuses are chosen in :mod:`curvefm.service.errors`, not here.
 * :class:`InvalidInput`: bad input a user can fix (bad mesh, unknown plugin, vertex out of range, wrong k).
 * :class:`NotFound`: no such shape, session, curve, job or file.
 * :class:`Conflict`: the request is well formed but the state does not allow it (e.g. bases not computed yet).
-* :class:`ResourceLimit`: the input is larger than a configured limit (:class:`LimitExceeded` names the limit).
+* :class:`ResourceLimit`: the input is larger than a configured limit (:class:`LimitExceeded` names the limit);
+  :class:`TooMany`: more requests, sessions or concurrent jobs than a configured limit allows.
+* :class:`Forbidden`: the caller is known but may not do this (e.g. a route for admins only).
 * :class:`InternalError`: our failure, not the user's (an eigensolver or LAPACK failure, a non-finite result).
 * :class:`Unavailable`: something the request needs (the job queue's Redis) does not answer now; try again later.
 """
@@ -38,8 +40,28 @@ class Conflict(CurvefmError):
     code = "conflict"
 
 
+class Forbidden(CurvefmError):
+    code = "forbidden"
+
+
 class ResourceLimit(CurvefmError):
+    """``setting``, when given, names what sets the limit: its environment variable."""
+
     code = "too_large"
+
+    def __init__(self, message: str, setting: str | None = None):
+        super().__init__(message)
+        self.setting = setting
+
+
+class TooMany(ResourceLimit):
+    """A count or rate limit; ``retry_after`` (seconds), when given, is when trying again may succeed."""
+
+    code = "too_many"
+
+    def __init__(self, message: str, setting: str | None = None, retry_after: float | None = None):
+        super().__init__(message, setting)
+        self.retry_after = retry_after
 
 
 class LimitExceeded(ResourceLimit):
@@ -54,7 +76,8 @@ class LimitExceeded(ResourceLimit):
         option = "--" + name.replace("_", "-")
         super().__init__(
             f"{what}: more than the limit of {limit}{unit} ({name}; set CURVEFM_{name.upper()} or "
-            f"'curvefm serve {option}' to change it)"
+            f"'curvefm serve {option}' to change it)",
+            setting=f"CURVEFM_{name.upper()}",
         )
 
 
@@ -64,3 +87,13 @@ class InternalError(CurvefmError):
 
 class Unavailable(CurvefmError):
     code = "unavailable"
+
+
+SHOWN_CHARS = 64
+
+
+def shown(value: object, chars: int = SHOWN_CHARS) -> str:
+    """``value`` as text for a message, cut to ``chars`` characters: an id a client sent is echoed back, and a
+    megabyte of it would be echoed too."""
+    text = str(value)
+    return text if len(text) <= chars else text[:chars] + "..."

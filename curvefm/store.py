@@ -23,7 +23,7 @@ import numpy as np
 from pydantic import BaseModel
 
 from curvefm import registry
-from curvefm.errors import NotFound
+from curvefm.errors import NotFound, shown
 from curvefm.geometry import Mesh, MeshReport
 from curvefm.progress import Progress, no_progress
 from curvefm.spectral import Basis
@@ -87,7 +87,7 @@ class Store:
 
     def get_mesh(self, mesh_hash: str) -> Mesh:
         if not self.has_mesh(mesh_hash):
-            raise NotFound(f"no shape with id '{mesh_hash}'")
+            raise NotFound(f"no shape with id '{shown(mesh_hash)}'")
         with np.load(self.mesh_path(mesh_hash)) as z:
             meta = json.loads(str(z["meta"]))
             return Mesh(

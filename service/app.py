@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
@@ -10,12 +9,16 @@ from fastapi import FastAPI
 from starlette.exceptions import HTTPException
 
 from curvefm.errors import LimitExceeded
-from curvefm.service import routes_jobs, routes_sessions, routes_shapes
+from curvefm.service import routes_audit, routes_jobs, routes_sessions, routes_shapes
 from curvefm.service.deps import start_services
 from curvefm.service.errors import error_response, error_responses, install_error_handlers
+from curvefm.service.headers import SecurityHeaders, ui_csp
 from curvefm.service.hints import install_hints
-from curvefm.service.settings import Settings
-from curvefm.service.ui import mount_ui
+from curvefm.service.hosts import HostCheck
+from curvefm.service.logs import log_config
+from curvefm.service.ratelimit import RateLimit, make_buckets
+from curvefm.service.settings import LOOPBACK_NAMES, Settings
+from curvefm.service.ui import INDEX_HTML, is_ui_path, mount_ui
 from curvefm.workers.factory import check_redis
 
 DESCRIPTION = """Interactive curve-constrained functional maps between 3D shapes.
@@ -73,6 +76,7 @@ class BodySizeLimit:
 
 def create_app(settings: Settings | None = None) -> FastAPI:
     settings = settings or Settings.from_env()
+    buckets = make_buckets(settings)
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
@@ -86,28 +90,40 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             yield
         finally:
             services.close()
+            await buckets.close()
 
     app = FastAPI(
         title="curvefm", version="0.1.0", description=DESCRIPTION, lifespan=lifespan, responses=error_responses(500)
     )
     install_error_handlers(app)
     install_hints(app)
+    # the last added runs first: headers on every answer, then the Host check, the rate limit, the body size
     app.add_middleware(BodySizeLimit, settings=settings)
-    for module in (routes_shapes, routes_sessions, routes_jobs):
+    if settings.rate_limit:
+        app.add_middleware(RateLimit, settings=settings, buckets=buckets, exempt=is_unlimited)
+    app.add_middleware(HostCheck, allowed=settings.allowed_hosts)
+    app.add_middleware(SecurityHeaders, csp=ui_csp(INDEX_HTML))
+    for module in (routes_shapes, routes_sessions, routes_jobs, routes_audit):
         app.include_router(module.router)
     mount_ui(app)  # last: its catch-all mount at / must not shadow the API routes
     return app
 
 
-def serve_main(host: str = "127.0.0.1", port: int = 8000, log_level: str = "info", **overrides) -> None:
+def is_unlimited(path: str) -> bool:
+    """``/health`` and the UI's static files are not rate limited."""
+    return path == "/health" or is_ui_path(path)
+
+
+def serve_main(host: str = LOOPBACK_NAMES[1], port: int = 8000, log_level: str = "info", **overrides) -> None:
     """Run the API with uvicorn until interrupted. ``overrides`` set :class:`Settings` by name (``data_dir``,
     ``redis_url``, ``demo``, the limits); ``None`` ones fall back to the environment (``CURVEFM_DATA``,
-    ``CURVEFM_REDIS_URL``, ``CURVEFM_MAX_UPLOAD_BYTES``, ...). Without Redis, jobs run in-process. Several
-    processes may serve one data directory: edits of a session are serialised by a lock file per session."""
+    ``CURVEFM_REDIS_URL``, ``CURVEFM_MAX_UPLOAD_BYTES``, ...); ``host`` chooses the default allowed hosts.
+    Without Redis, jobs run in-process. Several processes may serve one data directory: edits of a session are
+    serialised by a lock file per session."""
     import uvicorn
 
-    logging.basicConfig(level=log_level.upper(), format="%(asctime)s %(levelname)s %(name)s: %(message)s")
-    settings = Settings.from_env(**overrides)
+    settings = Settings.from_env(bind_host=host, **overrides)
     if settings.redis_url:
         check_redis(settings.redis_url)  # a wrong password is one line (exit 2), not a traceback at startup
-    uvicorn.run(create_app(settings), host=host, port=port, log_level=log_level)
+    app = create_app(settings)
+    uvicorn.run(app, host=host, port=port, log_level=log_level, log_config=log_config(log_level))

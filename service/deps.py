@@ -8,8 +8,11 @@ from typing import Annotated
 
 from fastapi import Depends, Request
 
+from curvefm.access import AuditLog, Usage, UserStore
 from curvefm.service.errors import error_responses, require_plugin
+from curvefm.service.expiry import start_expiry
 from curvefm.service.models import JobInfoModel
+from curvefm.service.quotas import Quotas
 from curvefm.service.settings import Settings
 from curvefm.session import LiveSessions, SessionEditor, SessionStore
 from curvefm.store import Store, params_key
@@ -28,6 +31,9 @@ class Services:
     records: SessionStore
     live: LiveSessions
     sessions: SessionEditor
+    users: UserStore
+    audit: AuditLog
+    quotas: Quotas
     stop_events: list[threading.Event] = field(default_factory=list)
 
     def close(self) -> None:
@@ -40,13 +46,23 @@ class Services:
 def start_services(settings: Settings) -> Services:
     store = Store(settings.data_dir)
     queue = make_queue(
-        settings.redis_url, store.root, settings.queue_prefix, settings.job_retries, settings.embedded_workers
+        settings.redis_url,
+        store.root,
+        settings.queue_prefix,
+        settings.job_retries,
+        settings.embedded_workers,
+        settings.job_ttl_s,
     )
     records = SessionStore(store.root)
     live = LiveSessions(store, records)
     # require_plugin's errors list the installed plugins
     sessions = SessionEditor(records, live, find_plugin=require_plugin, limits=settings.session_limits)
-    return Services(settings, store, queue, records, live, sessions)
+    quotas = Quotas(settings, Usage(store.root), store, records, queue)
+    users, audit = UserStore(store.root), AuditLog(store.root)
+    services = Services(settings, store, queue, records, live, sessions, users, audit, quotas)
+    expiry = start_expiry(queue, store.root / "results", settings.job_ttl_s, settings.expiry_interval_s)
+    services.stop_events.append(expiry)
+    return services
 
 
 def get_services(request: Request) -> Services:

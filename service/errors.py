@@ -8,6 +8,7 @@ Something the request needs that does not answer now (the job queue's Redis) is 
 from __future__ import annotations
 
 import logging
+import math
 import uuid
 
 from fastapi import FastAPI, Request
@@ -16,8 +17,20 @@ from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException
 
 from curvefm import registry
-from curvefm.errors import Conflict, CurvefmError, InternalError, InvalidInput, NotFound, ResourceLimit, Unavailable
+from curvefm.errors import (
+    Conflict,
+    CurvefmError,
+    Forbidden,
+    InternalError,
+    InvalidInput,
+    NotFound,
+    ResourceLimit,
+    TooMany,
+    Unavailable,
+    shown,
+)
 from curvefm.registry import Plugin
+from curvefm.service.headers import API_CSP, FIXED_HEADERS
 from curvefm.service.models import ErrorBody
 
 log = logging.getLogger("curvefm.service")
@@ -25,9 +38,11 @@ log = logging.getLogger("curvefm.service")
 STATUS: dict[type[CurvefmError], int] = {
     CurvefmError: 400,  # raised as such (e.g. by a third-party plugin): a user error
     InvalidInput: 400,
+    Forbidden: 403,
     NotFound: 404,
     Conflict: 409,
     ResourceLimit: 413,
+    TooMany: 429,
     InternalError: 500,
     Unavailable: 503,
 }
@@ -40,7 +55,7 @@ RETRY_AFTER_S = 5
 class UnknownPlugin(InvalidInput):
     def __init__(self, kind: str, name: str):
         self.available = registry.names(kind)
-        super().__init__(f"unknown {kind} '{name}'; installed {kind}s: {', '.join(self.available) or 'none'}")
+        super().__init__(f"unknown {kind} '{shown(name)}'; installed {kind}s: {', '.join(self.available) or 'none'}")
 
 
 def require_plugin(kind: str, name: str) -> Plugin:
@@ -67,9 +82,15 @@ def error_response(exc: CurvefmError, detail: str | None = None) -> JSONResponse
     """The JSON answer to a user's error (4xx) or to an unavailable dependency (503), its message or
     ``detail``; internal errors go through :func:`internal_error_response`."""
     body = {"error": exc.code, "detail": detail or exc.message}
+    headers = {}
     if isinstance(exc, UnknownPlugin):
         body["available"] = exc.available
-    headers = {"Retry-After": str(RETRY_AFTER_S)} if isinstance(exc, Unavailable) else None
+    if isinstance(exc, ResourceLimit) and exc.setting:
+        body["limit"] = exc.setting
+    if isinstance(exc, Unavailable):
+        headers["Retry-After"] = str(RETRY_AFTER_S)
+    if isinstance(exc, TooMany) and exc.retry_after is not None:
+        headers["Retry-After"] = str(max(1, math.ceil(exc.retry_after)))
     return JSONResponse(body, status_code=status_of(exc), headers=headers)
 
 
@@ -79,7 +100,10 @@ def internal_error_response(request: Request, exc: Exception) -> JSONResponse:
     log.error("internal error %s on %s %s", error_id, request.method, request.url.path, exc_info=exc)
     line = exc.message if isinstance(exc, InternalError) else "the server failed to handle this request"
     detail = f"{line} (error id {error_id}; the server log has the details)"
-    return JSONResponse({"error": InternalError.code, "detail": detail, "error_id": error_id}, status_code=500)
+    body = {"error": InternalError.code, "detail": detail, "error_id": error_id}
+    # answered by Starlette's outermost middleware, so the security headers middleware never sees it
+    headers = {**FIXED_HEADERS, "content-security-policy": API_CSP}
+    return JSONResponse(body, status_code=500, headers=headers)
 
 
 def install_error_handlers(app: FastAPI) -> None:

@@ -21,11 +21,24 @@ class FieldProblem(BaseModel):
 
 
 class ErrorBody(BaseModel):
-    error: str = Field(description="invalid, not_found, conflict, too_large, internal or unavailable")
+    error: str = Field(
+        description="invalid, not_found, forbidden, conflict, too_large, too_many, internal or unavailable"
+    )
     detail: str = Field(description="what was wrong and what to do")
+    limit: str | None = Field(
+        None, description="too_large and too_many: the setting (environment variable) of the limit reached"
+    )
     available: list[str] | None = Field(None, description="installed plugins of the kind asked for")
     fields: list[FieldProblem] | None = Field(None, description="each field that failed validation (422)")
     error_id: str | None = Field(None, description="internal errors (500): the id the server log files it under")
+
+
+class AuditEvent(BaseModel):
+    time: str = Field(description="UTC, ISO 8601 with milliseconds")
+    user: str = Field(description="who (a user name, or 'cli' for the command line)")
+    action: str = Field(description="what, e.g. session.share or user.add")
+    target: str = Field(description="to what: an id or a name")
+    detail: dict = Field(default_factory=dict)
 
 
 class BasisInfo(BaseModel):

@@ -8,7 +8,7 @@ from fastapi import APIRouter
 from fastapi.responses import FileResponse
 
 from curvefm import registry
-from curvefm.errors import NotFound
+from curvefm.errors import NotFound, shown
 from curvefm.service.deps import JOB_ERRORS, ServicesDep, job_model
 from curvefm.service.errors import error_responses
 from curvefm.service.models import JobInfoModel
@@ -44,7 +44,7 @@ def get_job_file(job_id: str, name: str, services: ServicesDep) -> FileResponse:
     """A file a refinement job wrote (listed in its ``links``)."""
     path = services.store.root / "results" / job_id / name
     if not (_SAFE_NAME.match(job_id) and _SAFE_NAME.match(name) and path.is_file()):
-        raise NotFound(f"job {job_id} has no result file '{name}'")
+        raise NotFound(f"job {shown(job_id)} has no result file '{shown(name)}'")
     return FileResponse(path, filename=name)
 
 

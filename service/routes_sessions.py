@@ -6,7 +6,8 @@ from typing import Annotated
 
 from fastapi import APIRouter, Query, Response
 
-from curvefm.errors import Conflict, InvalidInput
+from curvefm.errors import Conflict, InvalidInput, shown
+from curvefm.service.auth import MaybeUser
 from curvefm.service.deps import JOB_ERRORS, ServicesDep, job_model
 from curvefm.service.errors import error_responses, require_plugin
 from curvefm.service.models import CurveEdit, JobInfoModel, MapResponse, RefineRequest, SessionSummary
@@ -15,13 +16,17 @@ from curvefm.spectral import check_k
 
 router = APIRouter(tags=["sessions"])
 ERRORS = error_responses(400, 404, 409, 413, 422)
+QUOTA_ERRORS = error_responses(400, 404, 409, 413, 422, 429)
 
 
-@router.post("/sessions", status_code=201, response_model=SessionRecord, responses=ERRORS)
-def create_session(body: SessionCreate, services: ServicesDep) -> SessionRecord:
+@router.post("/sessions", status_code=201, response_model=SessionRecord, responses=QUOTA_ERRORS)
+def create_session(body: SessionCreate, services: ServicesDep, user: MaybeUser) -> SessionRecord:
     """Create a session on two shapes. Both need a basis with at least ``k`` functions already (409 names
-    the missing ones and how to request them)."""
-    return services.sessions.create(body)
+    the missing ones and how to request them). 429 at the user's sessions quota."""
+    with services.quotas.admit(user, "sessions") as charge:
+        record = services.sessions.create(body)
+        charge(record.id)
+    return record
 
 
 @router.get("/sessions", response_model=list[SessionSummary])
@@ -90,12 +95,16 @@ def get_transfer(
 
 
 @router.post(
-    "/sessions/{session_id}/refine", status_code=202, response_model=JobInfoModel, responses={**ERRORS, **JOB_ERRORS}
+    "/sessions/{session_id}/refine",
+    status_code=202,
+    response_model=JobInfoModel,
+    responses={**QUOTA_ERRORS, **JOB_ERRORS},
 )
-def refine(session_id: str, body: RefineRequest, services: ServicesDep) -> JobInfoModel:
+def refine(session_id: str, body: RefineRequest, services: ServicesDep, user: MaybeUser) -> JobInfoModel:
     """Queue pointwise maps both ways for the session's curves as they are now. The finished job links
     ``map_target_to_source.txt`` (line j: source vertex for target vertex j, file ids), the other direction,
-    the same maps as ``.npy``, both functional maps and a textured target OBJ."""
+    the same maps as ``.npy``, both functional maps and a textured target OBJ. 429 at the user's
+    concurrent-jobs quota, 413 when their stored bytes are at the byte quota."""
     record = services.sessions.record(session_id)
     plugin = require_plugin("converter", body.converter)
     parsed = plugin.parse_params(body.params)
@@ -113,7 +122,10 @@ def refine(session_id: str, body: RefineRequest, services: ServicesDep) -> JobIn
         "converter": body.converter,
         "params": params,
     }
-    return job_model(services.queue.submit("refine", kwargs))
+    with services.quotas.admit(user, "jobs") as charge:
+        info = services.queue.submit("refine", kwargs)
+        charge(info.id)
+    return job_model(info)
 
 
 def _parse_ids(text: str | None) -> list[int] | None:
@@ -122,7 +134,7 @@ def _parse_ids(text: str | None) -> list[int] | None:
     try:
         ids = [int(part) for part in text.split(",") if part.strip()]
     except ValueError:
-        raise InvalidInput(f"vertices must be comma-separated integers, got '{text}'") from None
+        raise InvalidInput(f"vertices must be comma-separated integers, got '{shown(text)}'") from None
     for vertex in ids:
         if not 0 <= vertex <= MAX_VERTEX_ID:
             raise InvalidInput(f"vertices: {vertex} is not a vertex id (0-based file ids, 0 to {MAX_VERTEX_ID})")

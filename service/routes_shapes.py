@@ -14,13 +14,16 @@ from fastapi import APIRouter, File, Form, Response, UploadFile
 
 from curvefm.errors import InvalidInput
 from curvefm.geometry import SUPPORTED_FORMATS, Mesh, load_mesh, texture_coordinates
+from curvefm.service.auth import MaybeUser
 from curvefm.service.deps import JOB_ERRORS, Services, ServicesDep, job_model, submit_basis
 from curvefm.service.errors import error_responses, require_plugin
 from curvefm.service.models import BasisInfo, BasisRequest, JobInfoModel, ShapeInfo
+from curvefm.service.quotas import stored_bytes
 from curvefm.spectral import check_k
 
 router = APIRouter(tags=["shapes"])
 ERRORS = error_responses(400, 404, 409, 413, 422)
+QUOTA_ERRORS = error_responses(400, 404, 409, 413, 422, 429)
 COPY_CHUNK = 1 << 20
 MESH_FORMAT = "curvefm-mesh-1"
 
@@ -30,10 +33,12 @@ def upload_shape(
     response: Response,
     file: Annotated[UploadFile, File(description=f"a mesh file: {', '.join(SUPPORTED_FORMATS)}")],
     services: ServicesDep,
+    user: MaybeUser,
     name: Annotated[str | None, Form(description="display name (default: the file name without suffix)")] = None,
 ) -> ShapeInfo:
     """Validate and store a mesh. Its id is the content hash, so uploading the same mesh again returns the
-    existing shape (200 instead of 201). A rejected upload stores nothing."""
+    existing shape (200 instead of 201). A rejected upload stores nothing. A new shape counts towards its
+    uploader's byte quota (413 when over it)."""
     filename = file.filename or ""
     suffix = Path(filename).suffix.lower()
     if suffix not in SUPPORTED_FORMATS:
@@ -48,7 +53,9 @@ def upload_shape(
         mesh = load_mesh(path, name=name or Path(filename).stem)
     if services.store.has_mesh(mesh.content_hash):
         response.status_code = 200
-    services.store.put_mesh(mesh)
+    else:
+        with services.quotas.admit(user, "shapes", stored_bytes(mesh)) as charge:
+            charge(services.store.put_mesh(mesh))
     return shape_info(services, mesh.content_hash)
 
 
@@ -85,16 +92,23 @@ def get_shape_mesh(shape_id: str, services: ServicesDep, format: Literal["binary
 
 
 @router.post(
-    "/shapes/{shape_id}/bases", status_code=202, response_model=JobInfoModel, responses={**ERRORS, **JOB_ERRORS}
+    "/shapes/{shape_id}/bases",
+    status_code=202,
+    response_model=JobInfoModel,
+    responses={**QUOTA_ERRORS, **JOB_ERRORS},
 )
-def request_basis(shape_id: str, body: BasisRequest, services: ServicesDep) -> JobInfoModel:
+def request_basis(shape_id: str, body: BasisRequest, services: ServicesDep, user: MaybeUser) -> JobInfoModel:
     """Queue the basis computation. While the same request (shape, plugin, k, parameters) is queued or
-    running, the same job is returned; if the basis already exists, the job finishes at once."""
+    running, the same job is returned; if the basis already exists, the job finishes at once. 429 at the
+    user's concurrent-jobs quota."""
     mesh = services.live.mesh(shape_id)
     canonical = require_plugin("basis", body.plugin).parse_params(body.params).model_dump()
     check_k(body.k, mesh.n_vertices, mesh.name or shape_id)
     services.sessions.limits.check("max_k", body.k, f"k = {body.k} basis functions")
-    return job_model(submit_basis(services, shape_id, body.k, body.plugin, canonical))
+    with services.quotas.admit(user, "jobs") as charge:
+        info = submit_basis(services, shape_id, body.k, body.plugin, canonical)
+        charge(info.id)
+    return job_model(info)
 
 
 def shape_info(services: Services, shape_id: str) -> ShapeInfo:

@@ -1,11 +1,19 @@
-"""Service settings, from the environment with explicit overrides (what ``curvefm serve`` options set)."""
+"""Service settings, from the environment with explicit overrides (what ``curvefm serve`` options set).
+
+Every limit has an environment variable, and an error that hits a limit names it: the request limits of
+:data:`LIMITS` are ``CURVEFM_<NAME>`` (``CURVEFM_MAX_K``); the others are in :data:`ENV`.
+"""
 
 from __future__ import annotations
 
+import ipaddress
 import os
+import socket
+from collections.abc import Callable
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
+from curvefm.errors import InvalidInput
 from curvefm.session import SessionLimits
 from curvefm.store import default_data_dir
 
@@ -14,6 +22,9 @@ DEFAULT_MAX_BODY_BYTES = 4 * 1024 * 1024
 SESSION_LIMITS = tuple(f.name for f in fields(SessionLimits))
 LIMITS = ("max_upload_bytes", "max_body_bytes", *SESSION_LIMITS)
 """The limits: each a positive integer, read from ``CURVEFM_<NAME>`` (``CURVEFM_MAX_K``) and named in its error."""
+LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
+ANY_HOST = "*"
+DAY_S = 24 * 3600
 
 
 @dataclass(frozen=True)
@@ -31,23 +42,36 @@ class Settings:
     """How often a job whose worker died is run again before it is marked failed (RQ mode)."""
     embedded_workers: int = 2
     demo: bool = False
+    allowed_hosts: tuple[str, ...] = LOOPBACK_NAMES
+    """Host header values answered (lower case, no port); ``*`` answers any."""
+    quota_bytes: int = 2 * 1024**3
+    """Per user: stored bytes of the shapes they uploaded and of their jobs' results. 0: no limit."""
+    quota_sessions: int = 100
+    """Per user: sessions they own. 0: no limit."""
+    quota_jobs: int = 4
+    """Per user: jobs queued or running at once. 0: no limit."""
+    rate_limit: float = 20.0
+    """Requests per second per credential (token, cookie, or client address without one). 0: no limit."""
+    rate_burst: int = 40
+    """Requests a credential may make at once before :attr:`rate_limit` paces it."""
+    job_ttl_s: float = 7 * DAY_S
+    """Finished job records and their result files are deleted this long after the job ended."""
+    expiry_interval_s: float = 600.0
+    """How often the API looks for expired jobs and result files."""
 
     @classmethod
-    def from_env(cls, **overrides) -> Settings:
-        """``CURVEFM_DATA``, ``CURVEFM_REDIS_URL``, ``CURVEFM_QUEUE_PREFIX``, ``CURVEFM_JOB_RETRIES`` and a
-        ``CURVEFM_<NAME>`` for each of :data:`LIMITS`; overrides (settings or limits by name) that are ``None``
-        are ignored."""
-        env = os.environ
-        values = {
-            "data_dir": default_data_dir(),
-            "redis_url": env.get("CURVEFM_REDIS_URL") or None,
-            "queue_prefix": env.get("CURVEFM_QUEUE_PREFIX", ""),
-            "job_retries": int(env.get("CURVEFM_JOB_RETRIES", 1)),
-        }
-        values.update({name: env[f"CURVEFM_{name.upper()}"] for name in LIMITS if f"CURVEFM_{name.upper()}" in env})
+    def from_env(cls, bind_host: str = LOOPBACK_NAMES[1], **overrides) -> Settings:
+        """Settings from the variables of :data:`ENV` and of :data:`LIMITS`, then ``overrides`` (settings or
+        limits by name; those that are ``None`` are ignored). ``bind_host``, the address the server listens on,
+        chooses the default allowed hosts."""
         unknown = set(overrides) - {f.name for f in fields(cls)} - set(LIMITS)
         if unknown:
             raise TypeError(f"unknown settings: {', '.join(sorted(unknown))}")
+        values = {"data_dir": default_data_dir(), "allowed_hosts": default_allowed_hosts(bind_host)}
+        for name, (variable, _) in ENV.items():
+            if os.environ.get(variable):
+                values[name] = parsed_setting(name, os.environ[variable], variable)
+        values.update({name: os.environ[limit_variable(name)] for name in LIMITS if limit_variable(name) in os.environ})
         values.update({key: value for key, value in overrides.items() if value is not None})
         for name in set(LIMITS) & set(values):
             values[name] = _positive(name, values[name])
@@ -57,11 +81,98 @@ class Settings:
         return cls(**values)
 
 
+def limit_variable(name: str) -> str:
+    return f"CURVEFM_{name.upper()}"
+
+
 def _positive(name: str, value: int | str) -> int:
     try:
         number = int(value)
     except ValueError:
         number = 0
     if number < 1:
-        raise ValueError(f"{name} (CURVEFM_{name.upper()}) must be a positive integer, got {value!r}")
+        raise ValueError(f"{name} ({limit_variable(name)}) must be a positive integer, got {value!r}")
     return number
+
+
+def _non_negative(kind: Callable[[str], float | int]) -> Callable[[str], float | int]:
+    def parse(text: str) -> float | int:
+        value = kind(text)
+        if not value >= 0:  # also refuses nan
+            raise ValueError(text)
+        return value
+
+    return parse
+
+
+def host_list(text: str) -> tuple[str, ...]:
+    """``"a.example, B.example"`` -> ``("a.example", "b.example")``; ``*`` allows any host."""
+    hosts = tuple(normal_host(part) for part in text.split(",") if part.strip())
+    if not hosts:
+        raise ValueError(text)
+    return hosts
+
+
+def normal_host(host: str) -> str:
+    """Lower case, without brackets around an IPv6 address or a trailing dot."""
+    return host.strip().lower().removeprefix("[").removesuffix("]").rstrip(".")
+
+
+ENV: dict[str, tuple[str, Callable[[str], object]]] = {
+    "redis_url": ("CURVEFM_REDIS_URL", str),
+    "queue_prefix": ("CURVEFM_QUEUE_PREFIX", str),
+    "job_retries": ("CURVEFM_JOB_RETRIES", _non_negative(int)),
+    "allowed_hosts": ("CURVEFM_ALLOWED_HOSTS", host_list),
+    "quota_bytes": ("CURVEFM_QUOTA_BYTES", _non_negative(int)),
+    "quota_sessions": ("CURVEFM_QUOTA_SESSIONS", _non_negative(int)),
+    "quota_jobs": ("CURVEFM_QUOTA_JOBS", _non_negative(int)),
+    "rate_limit": ("CURVEFM_RATE_LIMIT", _non_negative(float)),
+    "rate_burst": ("CURVEFM_RATE_BURST", _non_negative(int)),
+    "job_ttl_s": ("CURVEFM_JOB_TTL", _non_negative(float)),
+    "expiry_interval_s": ("CURVEFM_EXPIRY_INTERVAL", _non_negative(float)),
+}
+"""Setting -> (environment variable, parser), for the settings that are not request limits (:data:`LIMITS`)."""
+
+
+def env_name(setting: str) -> str:
+    """The environment variable of a setting, for messages that name a limit."""
+    return ENV[setting][0]
+
+
+def parsed_setting(name: str, text: str, source: str) -> object:
+    """The value of setting ``name`` written as ``text`` in ``source`` (a variable or an option, for the error)."""
+    try:
+        return ENV[name][1](text)
+    except ValueError:
+        raise InvalidInput(f"{source}={text!r} is not valid; see `curvefm serve --help`") from None
+
+
+def default_allowed_hosts(bind_host: str) -> tuple[str, ...]:
+    """The loopback names; bound elsewhere, also the bound address and this machine's names and addresses.
+
+    A browser sends the name it was pointed at as Host, so a page on an attacker's domain that resolves to this
+    machine (DNS rebinding) is refused, and loopback names are always safe to answer."""
+    if _is_loopback(bind_host):
+        return LOOPBACK_NAMES
+    names = [socket.gethostname(), socket.getfqdn()]
+    if bind_host not in ("", "0.0.0.0", "::"):
+        names.append(bind_host)
+    else:
+        names += _addresses(socket.gethostname())
+    return tuple(dict.fromkeys(normal_host(name) for name in (*LOOPBACK_NAMES, *names) if name))
+
+
+def _is_loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def _addresses(hostname: str) -> list[str]:
+    try:
+        return sorted({info[4][0] for info in socket.getaddrinfo(hostname, None)})
+    except OSError:
+        return []

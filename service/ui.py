@@ -7,7 +7,9 @@ three.js is not committed: ``npm install`` (run by ``scripts/setup.sh``) puts th
 
 from __future__ import annotations
 
+import logging
 import os
+from functools import cache
 from pathlib import Path
 
 from fastapi import FastAPI
@@ -15,13 +17,25 @@ from fastapi.responses import JSONResponse
 from fastapi.staticfiles import StaticFiles
 
 STATIC_DIR = Path(__file__).parent / "static"
+INDEX_HTML = STATIC_DIR / "index.html"
 VENDOR_URL = "/vendor/three"
 REPO_THREE_DIR = Path(__file__).resolve().parents[1] / "node_modules" / "three"
+log = logging.getLogger("curvefm.service")
 
 
 def three_dir() -> Path:
     """Where the three.js package is: ``CURVEFM_THREE_DIR``, else ``node_modules/three`` of the checkout."""
     return Path(os.environ.get("CURVEFM_THREE_DIR") or REPO_THREE_DIR)
+
+
+@cache
+def _ui_top_names() -> frozenset[str]:
+    return frozenset([path.name for path in STATIC_DIR.iterdir()] + [VENDOR_URL.split("/")[1]])
+
+
+def is_ui_path(path: str) -> bool:
+    """Whether ``path`` is the page or one of its static files (which need no token and are not limited)."""
+    return path == "/" or path.split("/", 2)[1] in _ui_top_names()
 
 
 def mount_ui(app: FastAPI) -> None:
@@ -32,9 +46,10 @@ def mount_ui(app: FastAPI) -> None:
         app.mount(VENDOR_URL, StaticFiles(directory=three), name="vendor-three")
     else:
         message = (
-            f"three.js is not installed at {three}: run `npm install` in the repository root "
+            "three.js is not installed on the server: run `npm install` in the repository root "
             "(scripts/setup.sh does) or set CURVEFM_THREE_DIR to an installed 'three' package"
         )
+        log.warning("%s (looked in %s)", message, three)  # the path goes to the log, not to the page
 
         @app.get(VENDOR_URL + "/{path:path}", include_in_schema=False)
         def three_missing(path: str) -> JSONResponse:

@@ -154,7 +154,8 @@ class Processes:
         if redis_url:
             args += ["--redis-url", redis_url]
         name = f"api-{port}"
-        process = self.start(args, name, env)
+        # tests drive a server far faster than a person does: no rate limit unless the test sets one
+        process = self.start(args, name, {"CURVEFM_RATE_LIMIT": "0", **(env or {})})
         api = Api(process, f"http://127.0.0.1:{port}", self.folder / f"{name}.log")
         wait_until_healthy(api)
         return api

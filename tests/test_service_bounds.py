@@ -198,13 +198,16 @@ def multipart(filename: str, content: bytes) -> tuple[bytes, str]:
     return head + content + f"\r\n--{boundary}--\r\n".encode(), f"multipart/form-data; boundary={boundary}"
 
 
+UPLOAD_LINES = "POST /shapes HTTP/1.1\r\nHost: localhost\r\n"  # the server answers allowed hosts only
+
+
 def chunked_request(body: bytes, content_type: str) -> list[bytes]:
-    head = f"POST /shapes HTTP/1.1\r\nHost: x\r\nContent-Type: {content_type}\r\nTransfer-Encoding: chunked\r\n\r\n"
+    head = f"{UPLOAD_LINES}Content-Type: {content_type}\r\nTransfer-Encoding: chunked\r\n\r\n"
     return [head.encode()] + [b"%x\r\n%s\r\n" % (len(part), part) for part in chunks(body)] + [b"0\r\n\r\n"]
 
 
 def lying_request(body: bytes, content_type: str, declared: int) -> list[bytes]:
-    head = f"POST /shapes HTTP/1.1\r\nHost: x\r\nContent-Type: {content_type}\r\nContent-Length: {declared}\r\n\r\n"
+    head = f"{UPLOAD_LINES}Content-Type: {content_type}\r\nContent-Length: {declared}\r\n\r\n"
     return [head.encode(), *chunks(body)]
 
 

@@ -73,3 +73,16 @@ def test_without_a_password_compose_refuses_to_run_and_says_which_setting(tmp_pa
 
 def test_the_api_is_published_on_the_loopback_address_only(services):
     assert services["api"]["ports"] == ["127.0.0.1:8000:8000/tcp"]
+
+
+def test_allowed_hosts_and_limits_in_the_env_file_reach_the_api(services, tmp_path):
+    assert services["api"]["environment"]["CURVEFM_ALLOWED_HOSTS"] == ""  # the example keeps the defaults
+    env_file = tmp_path / "limits.env"
+    env_file.write_text(
+        f"CURVEFM_REDIS_PASSWORD={PASSWORD}\nCURVEFM_ALLOWED_HOSTS=curvefm.lab.example.org\nCURVEFM_RATE_LIMIT=5\n"
+    )
+    result = compose_config(env_file)
+    assert result.returncode == 0, result.stderr
+    environment = yaml.safe_load(result.stdout)["services"]["api"]["environment"]
+    assert environment["CURVEFM_ALLOWED_HOSTS"] == "curvefm.lab.example.org"
+    assert environment["CURVEFM_RATE_LIMIT"] == "5"

@@ -132,7 +132,7 @@ def test_click_curves_delete_refine_and_download(page, demo):
     page.select_option("#converter-select", "nearest-neighbor")
     page.click("#refine-button")
     page.wait_for_selector("#refine-progress .progress-row.ok", timeout=60_000)
-    page.wait_for_function('document.querySelector(\'input[name="map"][value="pointwise"]\').checked')
+    page.wait_for_function('() => document.querySelector(\'input[name="map"][value="pointwise"]\').checked')
     next_frames(page)
     screenshot(page, "03-refined-pointwise")
 

@@ -54,7 +54,8 @@ def open_session(page, url: str, session_id: str, timeout_ms: float = 60_000) ->
 
     page.goto(f"{url}/?session={session_id}")
     try:
-        page.wait_for_function("window.curvefm && window.curvefm.ready", timeout=timeout_ms)
+        # predicates are functions: a bare expression is eval()ed in the page, which its CSP forbids
+        page.wait_for_function("() => window.curvefm && window.curvefm.ready", timeout=timeout_ms)
     except PlaywrightTimeout:
         said = page.evaluate("[...document.querySelectorAll('#banner, #loading, .toast')].map((e) => e.innerText)")
         raise AssertionError(f"the UI did not show session {session_id}: {said}") from None
@@ -96,7 +97,7 @@ def click_curve(page, points: list[dict], timeout_ms: float = 30_000) -> dict:
             page.keyboard.up("Shift")
         if number < len(clicks) - 1:
             next_frames(page)
-    page.wait_for_function(f"window.curvefmStats.samples.length > {before}", timeout=timeout_ms)
+    page.wait_for_function("(before) => window.curvefmStats.samples.length > before", arg=before, timeout=timeout_ms)
     return page.evaluate("window.curvefmStats.last")
 
 

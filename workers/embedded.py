@@ -22,6 +22,7 @@ from curvefm.progress import Cancelled
 from curvefm.workers.context import JobContext, embedded_job, progress_fraction
 from curvefm.workers.interface import (
     ENDED_STATES,
+    KEEP_ENDED_S,
     JobFailure,
     JobInfo,
     JobQueue,
@@ -39,13 +40,15 @@ STOPPED = "the service stopped"
 
 
 class EmbeddedQueue(JobQueue):
-    """Runs jobs in threads of this process; their records go under ``data_dir``."""
+    """Runs jobs in threads of this process; their records go under ``data_dir``. An ended job leaves memory
+    ``keep_ended_s`` after it ended, or when more than :attr:`KEEP_ENDED` jobs have ended."""
 
     mode = "embedded"
     KEEP_ENDED = 1000
 
-    def __init__(self, data_dir: str | Path, max_workers: int = 2):
+    def __init__(self, data_dir: str | Path, max_workers: int = 2, keep_ended_s: float = KEEP_ENDED_S):
         self.records = JobRecords(data_dir)
+        self.keep_ended_s = keep_ended_s
         self.runner = f"embedded:{socket.gethostname()}:{os.getpid()}:{uuid.uuid4().hex[:8]}"
         self._executor = ThreadPoolExecutor(max_workers=max_workers, thread_name_prefix="curvefm-job")
         self._lock = threading.Lock()
@@ -74,6 +77,7 @@ class EmbeddedQueue(JobQueue):
 
     def get(self, job_id: str) -> JobInfo:
         with self._lock:
+            self._forget_old_jobs()
             info = self._jobs.get(job_id)
         if info is not None:
             return info
@@ -150,10 +154,14 @@ class EmbeddedQueue(JobQueue):
         return replace(info, message="cancel requested; the job stops at its next progress step")
 
     def _forget_old_jobs(self) -> None:
-        """Keep the newest ``KEEP_ENDED`` ended jobs in memory; older ones are answered from their records."""
+        """Keep the newest ``KEEP_ENDED`` ended jobs in memory, none older than ``keep_ended_s``; others are
+        answered from their records (until those expire too)."""
         ended = [j for j, info in self._jobs.items() if info.state in ENDED_STATES]
-        for job_id in ended[: max(len(ended) - self.KEEP_ENDED, 0)]:
-            del self._jobs[job_id]
+        too_many = set(ended[: max(len(ended) - self.KEEP_ENDED, 0)])
+        expired = time.time() - self.keep_ended_s
+        for job_id in ended:
+            if job_id in too_many or (self._jobs[job_id].ended_at or expired) < expired:
+                del self._jobs[job_id]
 
     # -- jobs of other executors ------------------------------------------------------------------------------
     def _lose_if_orphaned(self, stored: StoredJob) -> JobInfo:

@@ -5,22 +5,28 @@ from __future__ import annotations
 from pathlib import Path
 
 from curvefm.workers.embedded import EmbeddedQueue
-from curvefm.workers.interface import JobQueue
+from curvefm.workers.interface import KEEP_ENDED_S, JobQueue
 
 API_REAP_INTERVAL_S = 5.0
 """How often the API looks for jobs of dead workers (the workers themselves look more often)."""
 
 
 def make_queue(
-    redis_url: str | None, data_dir: str | Path, prefix: str = "", retries: int = 1, embedded_workers: int = 2
+    redis_url: str | None,
+    data_dir: str | Path,
+    prefix: str = "",
+    retries: int = 1,
+    embedded_workers: int = 2,
+    keep_ended_s: float = KEEP_ENDED_S,
 ) -> JobQueue:
     """RQ on Redis when a URL is given (checked to answer, with its reaper of dead workers' jobs running until
-    the queue is closed), else the in-process executor. Job records go under ``data_dir``."""
+    the queue is closed), else the in-process executor. Job records go under ``data_dir``. The queue forgets
+    an ended job ``keep_ended_s`` after it ended (its record is the expiry's to delete)."""
     if not redis_url:
-        return EmbeddedQueue(data_dir, embedded_workers)
+        return EmbeddedQueue(data_dir, embedded_workers, keep_ended_s)
     from curvefm.workers.rq_queue import RQQueue  # needs redis and rq, which embedded mode does without
 
-    queue = RQQueue(redis_url, data_dir, prefix=prefix, retries=retries)
+    queue = RQQueue(redis_url, data_dir, prefix=prefix, retries=retries, keep_ended_s=keep_ended_s)
     queue.start_reaper(API_REAP_INTERVAL_S)
     return queue
 

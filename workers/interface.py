@@ -19,7 +19,7 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal
 
-from curvefm.errors import Conflict, CurvefmError, InternalError, InvalidInput, NotFound
+from curvefm.errors import Conflict, CurvefmError, InternalError, InvalidInput, NotFound, shown
 
 if TYPE_CHECKING:
     from curvefm.workers.records import JobRecords
@@ -30,6 +30,8 @@ RETRYABLE_STATES: tuple[JobState, ...] = ("lost", "failed", "canceled")
 JOB_KINDS = ("basis", "refine")
 """What :meth:`JobQueue.submit` runs: ``curvefm.workers.jobs.JOB_FUNCTIONS[kind]``."""
 WORKER_LOST = "worker_lost"
+KEEP_ENDED_S = 7 * 24 * 3600.0
+"""How long an ended job's record is kept by default (the service's ``CURVEFM_JOB_TTL``)."""
 
 
 @dataclass(frozen=True)
@@ -110,7 +112,7 @@ def one_line(text: str) -> str:
 
 
 def unknown_job(job_id: str) -> NotFound:
-    return NotFound(f"no job with id '{job_id}' (finished jobs are forgotten after a while)")
+    return NotFound(f"no job with id '{shown(job_id)}' (finished jobs are forgotten after a while)")
 
 
 def already_ended(info: JobInfo) -> Conflict:

@@ -80,6 +80,17 @@ class JobRecords:
         if _JOB_ID.match(job_id):
             self._path(job_id).unlink(missing_ok=True)
 
+    def expire(self, ended_before: float) -> list[str]:
+        """Delete the records of jobs that ended before ``ended_before`` (a ``time.time()``); return their ids."""
+        expired = []
+        for path in sorted(self.folder.glob("*.json")):
+            with self._locked():
+                stored = self.load(path.stem)
+                if stored is not None and _ended(stored.info) and (stored.info.ended_at or 0) < ended_before:
+                    path.unlink(missing_ok=True)
+                    expired.append(path.stem)
+        return expired
+
     def unended(self) -> list[StoredJob]:
         """Records of jobs that have not ended (queued or running, as far as their records know)."""
         stored = (self.load(path.stem) for path in self.folder.glob("*.json"))

@@ -33,6 +33,7 @@ from curvefm.workers.connection import SERIALIZER, UNREACHABLE, connect
 from curvefm.workers.interface import (
     ENDED_STATES,
     JOB_KINDS,
+    KEEP_ENDED_S,
     WORKER_LOST,
     JobFailure,
     JobInfo,
@@ -49,7 +50,6 @@ from curvefm.workers.records import JobRecords, StoredJob, lost_reason, records_
 log = logging.getLogger("curvefm.workers")
 
 JOB_TIMEOUT_S = 3 * 3600
-KEEP_RESULTS_S = 7 * 24 * 3600
 RECORDED_STATES_KEPT = 10_000
 QUEUE_LOST = "the job queue (Redis) no longer knows this job (it restarted without its data, or was emptied)"
 REDIS_DOWN = (
@@ -95,10 +95,18 @@ class RQQueue(JobQueue):
 
     mode = "redis"
 
-    def __init__(self, redis_url: str, data_dir: str | Path, prefix: str = "", retries: int = 1):
+    def __init__(
+        self,
+        redis_url: str,
+        data_dir: str | Path,
+        prefix: str = "",
+        retries: int = 1,
+        keep_ended_s: float = KEEP_ENDED_S,
+    ):
         self.connection = connect(redis_url)
         self.records = JobRecords(data_dir)
         self.retries = retries
+        self.keep_ended_s = max(1, round(keep_ended_s))  # RQ's TTLs are whole seconds
         self.queues = {
             kind: Queue(name, connection=self.connection, serializer=SERIALIZER)
             for kind, name in queue_names(prefix).items()
@@ -145,8 +153,10 @@ class RQQueue(JobQueue):
         if info.state == "started":
             send_stop_job_command(self.connection, job_id)
             return replace(info, message="cancel requested; the worker stops the job")
+        job = self._fetch(job_id)
         with contextlib.suppress(InvalidJobOperation):  # it was canceled in between
-            self._fetch(job_id).cancel()
+            job.cancel()
+        self.connection.expire(job.key, self.keep_ended_s)  # RQ keeps a canceled job until deleted
         return self.get(job_id)
 
     @_needs_redis
@@ -169,8 +179,8 @@ class RQQueue(JobQueue):
                 kwargs=kwargs,
                 job_id=info.id,
                 timeout=JOB_TIMEOUT_S,
-                result_ttl=KEEP_RESULTS_S,
-                failure_ttl=KEEP_RESULTS_S,
+                result_ttl=self.keep_ended_s,
+                failure_ttl=self.keep_ended_s,
                 retry=Retry(max=self.retries) if self.retries > 0 else None,
                 meta={"kind": kind, "owner": owner, "progress": 0.0, "message": "queued"},
                 description=f"curvefm {kind}",

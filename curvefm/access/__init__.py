@@ -8,11 +8,13 @@ server of their own:
   rereads the file only when it changed, so it is cheap enough for every request and sees users added or
   removed by another process at once.
 * :class:`AuditLog`: who did what, as append-only JSON lines in ``audit.jsonl``.
+* :class:`Usage`: what each user's quotas are charged for, one file per user under ``usage/``.
 
 No HTTP and no Redis here: the service decides how a token arrives and what a user may do.
 """
 
 from curvefm.access.audit import AuditLog
-from curvefm.access.users import TOKEN_PREFIX, User, UserStore
+from curvefm.access.usage import Usage
+from curvefm.access.users import TOKEN_PREFIX, User, UserStore, redact_tokens
 
-__all__ = ["AuditLog", "TOKEN_PREFIX", "User", "UserStore"]
+__all__ = ["AuditLog", "TOKEN_PREFIX", "Usage", "User", "UserStore", "redact_tokens"]

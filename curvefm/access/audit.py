@@ -13,18 +13,16 @@ from __future__ import annotations
 
 import json
 import os
-import re
 from collections.abc import Iterator
 from datetime import UTC, datetime
 from pathlib import Path
 
 from curvefm.access.common import access_dir, timestamp
-from curvefm.access.users import TOKEN_PREFIX
+from curvefm.access.users import redact_tokens
 from curvefm.errors import InvalidInput
 
 # Reading goes backwards from the end in blocks of this many bytes, so a short tail of a long log is cheap.
 BLOCK_BYTES = 64 * 1024
-_TOKEN = re.compile(re.escape(TOKEN_PREFIX) + r"[A-Za-z0-9_-]{20,}")
 
 
 class AuditLog:
@@ -64,7 +62,7 @@ class AuditLog:
         return events[::-1]
 
     def _redact(self, text: str) -> str:
-        text = _TOKEN.sub(TOKEN_PREFIX + "[redacted]", text)
+        text = redact_tokens(text)
         for path in self._paths:
             text = text.replace(json.dumps(path)[1:-1], "[data]")
         return text

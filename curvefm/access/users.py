@@ -11,20 +11,18 @@ secret that cannot be guessed, and a plain SHA-256 lets :meth:`UserStore.authent
 
 from __future__ import annotations
 
-import contextlib
-import fcntl
 import hashlib
 import hmac
 import json
 import os
 import re
 import secrets
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TypeVar
 
-from curvefm.access.common import access_dir, timestamp
+from curvefm.access.common import access_dir, locked, timestamp
 from curvefm.errors import Conflict, InternalError, InvalidInput, NotFound
 from curvefm.store import atomic_write
 
@@ -33,6 +31,7 @@ NAME_PATTERN = re.compile(r"[A-Za-z0-9_.-]{1,64}")
 FORMAT_VERSION = 1
 # Longer than any token we make: anything longer is refused before hashing.
 MAX_TOKEN_LENGTH = 128
+_TOKEN = re.compile(re.escape(TOKEN_PREFIX) + r"[A-Za-z0-9_-]{20,}")
 T = TypeVar("T")
 
 
@@ -143,7 +142,7 @@ class UserStore:
 
     def _update(self, change: Callable[[list[dict]], T]) -> T:
         """Under the lock: read the records, let ``change`` edit them in place, write them back if it did."""
-        with self._locked():
+        with locked(self._lock_path):
             before = list(_read(self.path).records) if self.path.exists() else []
             records = [dict(r) for r in before]
             result = change(records)
@@ -151,15 +150,6 @@ class UserStore:
                 data = json.dumps({"version": FORMAT_VERSION, "users": records}, indent=1) + "\n"
                 atomic_write(self.path, data.encode())
             return result
-
-    @contextlib.contextmanager
-    def _locked(self) -> Iterator[None]:
-        fd = os.open(self._lock_path, os.O_RDWR | os.O_CREAT, 0o600)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX)
-            yield
-        finally:
-            os.close(fd)  # closing releases the lock
 
 
 def _read(path: Path) -> _Snapshot:
@@ -201,6 +191,11 @@ def _record(name: str, admin: bool, token: str) -> dict:
     now = timestamp()
     return {"name": name, "admin": bool(admin), "token_sha256": _hash(token), "created_at": now,
             "token_rotated_at": now}
+
+
+def redact_tokens(text: str) -> str:
+    """``text`` with every token in it replaced by ``cfm_[redacted]``."""
+    return _TOKEN.sub(TOKEN_PREFIX + "[redacted]", text)
 
 
 def _new_token() -> str:

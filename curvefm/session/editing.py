@@ -19,7 +19,7 @@ import numpy as np
 from pydantic import BaseModel, Field
 
 from curvefm import registry
-from curvefm.errors import InvalidInput, NotFound
+from curvefm.errors import InvalidInput, NotFound, shown
 from curvefm.fmap import FunctionTransfer
 from curvefm.geometry import Mesh, texture_coordinates
 from curvefm.registry import Plugin
@@ -206,7 +206,7 @@ def _projected(live: LiveSession, function: TransferFunction, vertices: list[int
 def _require_curve(record: SessionRecord, curve_id: str) -> None:
     if all(c.id != curve_id for c in record.curves):
         ids = ", ".join(c.id for c in record.curves) or "none yet"
-        raise NotFound(f"no curve '{curve_id}' in session {record.id}; its curves: {ids}")
+        raise NotFound(f"no curve '{shown(curve_id)}' in session {record.id}; its curves: {ids}")
 
 
 def _summary(live: LiveSession, solve_ms: float) -> MapSummary:

@@ -25,7 +25,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 
 from curvefm.cache import LRU
-from curvefm.errors import NotFound
+from curvefm.errors import NotFound, shown
 from curvefm.fmap import CurveMapSolver, FunctionTransfer
 from curvefm.geometry import Mesh
 from curvefm.session.pair import BasisNeed, ShapePair, basis_needs, build_solver, internal_paths, load_basis
@@ -42,7 +42,7 @@ class UnknownShape(NotFound):
 
     def __init__(self, mesh_id: str, role: str = ""):
         self.mesh_id, self.role = mesh_id, role
-        super().__init__(f"no {role + ' ' if role else ''}shape with id '{mesh_id}'")
+        super().__init__(f"no {role + ' ' if role else ''}shape with id '{shown(mesh_id)}'")
 
 
 @dataclass

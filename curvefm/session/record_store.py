@@ -22,7 +22,7 @@ from pathlib import Path
 
 from pydantic import BaseModel
 
-from curvefm.errors import Conflict, InvalidInput, NotFound
+from curvefm.errors import Conflict, InvalidInput, NotFound, shown
 from curvefm.session.record import SessionRecord
 from curvefm.store import atomic_write
 
@@ -38,7 +38,7 @@ class UnknownSession(NotFound):
 
     def __init__(self, session_id: str):
         self.session_id = session_id
-        super().__init__(f"no session with id '{session_id}'")
+        super().__init__(f"no session with id '{shown(session_id)}'")
 
 
 class SessionStore:

@@ -1,0 +1,31 @@
+"""``/audit``: the audit log (who created, changed, shared or deleted what), for admins."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Annotated
+
+from fastapi import APIRouter, Query
+
+from curvefm.errors import Forbidden
+from curvefm.service.auth import CurrentUser
+from curvefm.service.deps import ServicesDep
+from curvefm.service.errors import error_responses
+from curvefm.service.models import AuditEvent
+
+router = APIRouter(tags=["audit"])
+MAX_EVENTS = 10_000
+
+
+@router.get("/audit", response_model=list[AuditEvent], responses=error_responses(401, 403, 422))
+def read_audit(
+    caller: CurrentUser,
+    services: ServicesDep,
+    limit: Annotated[int, Query(ge=1, le=MAX_EVENTS, description="the last this many events")] = 100,
+    since: Annotated[datetime | None, Query(description="only events at or after this ISO 8601 time")] = None,
+    user: Annotated[str | None, Query(max_length=64, description="only events of this user")] = None,
+) -> list[dict]:
+    """Events oldest first; admins only (403 for other users)."""
+    if not caller.admin:
+        raise Forbidden(f"the audit log is for admins; {caller.name} is not one")
+    return services.audit.read(limit=limit, since=since, user=user)
