@@ -40,10 +40,14 @@ def services(tmp_path) -> dict:
     return yaml.safe_load(result.stdout)["services"]
 
 
+API_REPLICAS = ("api", "api-2")
+
+
 def test_compose_file_is_valid_and_runs_the_tested_commands(services, processes):
-    assert services["api"]["command"][:3] == processes.api_command
+    for name in API_REPLICAS:
+        assert services[name]["command"][:3] == processes.api_command
     assert services["worker"]["command"][:3] == processes.worker_command
-    for name in ("api", "worker"):
+    for name in (*API_REPLICAS, "worker"):
         assert "data:/data:rw" in services[name]["volumes"]
     assert "ports" not in services["worker"] and "container_name" not in services["worker"]  # --scale works
 
@@ -55,7 +59,7 @@ def test_redis_needs_the_password_from_the_env_file_and_the_api_and_workers_use_
     assert "ports" not in redis
     assert redis["command"][redis["command"].index("--appendonly") + 1] == "yes"  # issue 12: jobs survive restarts
     assert "redis-data:/data:rw" in redis["volumes"]
-    for name in ("api", "worker"):
+    for name in (*API_REPLICAS, "worker"):
         assert services[name]["environment"]["CURVEFM_REDIS_URL"] == f"redis://:{PASSWORD}@redis:6379/0"
 
 
@@ -71,8 +75,12 @@ def test_without_a_password_compose_refuses_to_run_and_says_which_setting(tmp_pa
     assert "CURVEFM_REDIS_PASSWORD must be set" in result.stderr, result.stderr
 
 
-def test_the_api_is_published_on_the_loopback_address_only(services):
-    assert services["api"]["ports"] == ["127.0.0.1:8000:8000/tcp"]
+def test_two_api_replicas_are_reached_only_through_the_proxy_on_the_loopback_address(services):
+    assert services["proxy"]["ports"] == ["127.0.0.1:8000:8000/tcp"]
+    command = services["proxy"]["command"]
+    assert [command[i + 1] for i, word in enumerate(command) if word == "--to"] == ["api:8000", "api-2:8000"]
+    assert all("ports" not in services[name] for name in API_REPLICAS)
+    assert services["api"]["environment"] == services["api-2"]["environment"]
 
 
 def test_allowed_hosts_and_limits_in_the_env_file_reach_the_api(services, tmp_path):
@@ -83,6 +91,7 @@ def test_allowed_hosts_and_limits_in_the_env_file_reach_the_api(services, tmp_pa
     )
     result = compose_config(env_file)
     assert result.returncode == 0, result.stderr
-    environment = yaml.safe_load(result.stdout)["services"]["api"]["environment"]
-    assert environment["CURVEFM_ALLOWED_HOSTS"] == "curvefm.lab.example.org"
-    assert environment["CURVEFM_RATE_LIMIT"] == "5"
+    for name in API_REPLICAS:
+        environment = yaml.safe_load(result.stdout)["services"][name]["environment"]
+        assert environment["CURVEFM_ALLOWED_HOSTS"] == "curvefm.lab.example.org"
+        assert environment["CURVEFM_RATE_LIMIT"] == "5"
