@@ -9,7 +9,9 @@ statuses are chosen in :mod:`curvefm.service.errors`, not here.
 * :class:`Conflict`: the request is well formed but the state does not allow it (e.g. bases not computed yet).
 * :class:`ResourceLimit`: the input is larger than a configured limit (:class:`LimitExceeded` names the limit);
   :class:`TooMany`: more requests, sessions or concurrent jobs than a configured limit allows.
-* :class:`Forbidden`: the caller is known but may not do this (e.g. a route for admins only).
+* :class:`Unauthenticated`: no credentials, or ones that are wrong, rotated or of a removed user.
+* :class:`Forbidden`: the caller is known but may not do this (e.g. a route for admins only, or editing a session
+  shared read-only).
 * :class:`InternalError`: our failure, not the user's (an eigensolver or LAPACK failure, a non-finite result).
 * :class:`Unavailable`: something the request needs (the job queue's Redis) does not answer now; try again later.
 """
@@ -79,6 +81,10 @@ class LimitExceeded(ResourceLimit):
             f"'curvefm serve {option}' to change it)",
             setting=f"CURVEFM_{name.upper()}",
         )
+
+
+class Unauthenticated(CurvefmError):
+    code = "unauthenticated"
 
 
 class InternalError(CurvefmError):

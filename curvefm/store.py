@@ -3,6 +3,7 @@
 Layout under the root (``CURVEFM_DATA``, default ``~/.local/share/curvefm``)::
 
     meshes/<mesh hash>.npz                         validated mesh arrays
+    meshes/<mesh hash>.uploaders                   who uploaded it (user names, one a line, appended)
     bases/<mesh hash>/<plugin>-k<k>-<params>.npz   eigenbases
     sessions/<session id>.json                     session records (curvefm.session.SessionStore)
 
@@ -16,6 +17,7 @@ import hashlib
 import io
 import json
 import os
+import shutil
 import tempfile
 from pathlib import Path
 
@@ -104,6 +106,37 @@ class Store:
     def mesh_ids(self) -> list[str]:
         return sorted(p.stem for p in (self.root / "meshes").glob("*.npz"))
 
+    def add_uploader(self, mesh_hash: str, user: str) -> bool:
+        """Note that ``user`` uploaded the mesh (an appended line, so writers never interleave); False when they
+        had already."""
+        if user in self.uploaders(mesh_hash):
+            return False
+        fd = os.open(self._uploaders_path(mesh_hash), os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        try:
+            os.write(fd, f"{user}\n".encode())
+        finally:
+            os.close(fd)
+        return True
+
+    def uploaders(self, mesh_hash: str) -> list[str]:
+        """Who uploaded the mesh, first uploader first (empty for meshes stored before uploaders were kept)."""
+        try:
+            names = self._uploaders_path(mesh_hash).read_text().split()
+        except FileNotFoundError:
+            return []
+        return list(dict.fromkeys(names))
+
+    def delete_mesh(self, mesh_hash: str) -> None:
+        """Remove the mesh, its uploaders and its bases."""
+        if not self.has_mesh(mesh_hash):
+            raise NotFound(f"no shape with id '{mesh_hash}'")
+        self.delete_bases(mesh_hash)
+        self.mesh_path(mesh_hash).unlink(missing_ok=True)
+        self._uploaders_path(mesh_hash).unlink(missing_ok=True)
+
+    def _uploaders_path(self, mesh_hash: str) -> Path:
+        return self.root / "meshes" / f"{mesh_hash}.uploaders"
+
     # -- bases --------------------------------------------------------------------------------------------
     def basis_path(self, mesh_hash: str, plugin: str, k: int, params: dict) -> Path:
         return self.root / "bases" / mesh_hash / f"{plugin}-k{k}-{params_key(params)}.npz"
@@ -135,6 +168,13 @@ class Store:
             k, key = rest.split("-")
             out.append({"plugin": plugin, "k": int(k), "params_key": key})
         return out
+
+    def delete_bases(self, mesh_hash: str) -> list[dict]:
+        """Remove every stored basis of the mesh; returns what was removed (as :meth:`stored_bases`)."""
+        removed = self.stored_bases(mesh_hash)
+        if _safe_id(mesh_hash):
+            shutil.rmtree(self.root / "bases" / mesh_hash, ignore_errors=True)
+        return removed
 
     def put_basis(self, mesh_hash: str, basis: Basis, plugin: str, params: dict) -> None:
         atomic_write(self.basis_path(mesh_hash, plugin, basis.k, params), basis.to_bytes())

@@ -67,6 +67,7 @@ class JobInfo:
     started_at: float | None = None
     ended_at: float | None = None
     owner: str | None = None
+    """The user who submitted it (None: submitted by no user, e.g. before users existed)."""
 
 
 class JobQueue(ABC):
@@ -75,8 +76,9 @@ class JobQueue(ABC):
 
     @abstractmethod
     def submit(self, kind: str, kwargs: dict, dedupe_key: str | None = None, owner: str | None = None) -> JobInfo:
-        """Queue the job function of ``kind`` with ``kwargs`` (plain JSON values). While a job with the same
-        ``dedupe_key`` is queued or running, return that job instead of starting another."""
+        """Queue the job function of ``kind`` with ``kwargs`` (plain JSON values) for ``owner``. While a job with
+        the same ``dedupe_key`` is queued or running, return that job (whoever owns it) instead of starting
+        another."""
 
     @abstractmethod
     def get(self, job_id: str) -> JobInfo:

@@ -49,9 +49,10 @@ class _Snapshot:
     key: tuple[int, int, int] | None
     records: tuple[dict, ...]
     by_hash: dict[str, dict]
+    by_name: dict[str, dict]
 
 
-_EMPTY = _Snapshot(key=None, records=(), by_hash={})
+_EMPTY = _Snapshot(key=None, records=(), by_hash={}, by_name={})
 
 
 class UserStore:
@@ -76,12 +77,28 @@ class UserStore:
             return None
         return _user(record)
 
+    def get(self, name: str) -> User | None:
+        record = self._record(name)
+        return None if record is None else _user(record)
+
+    def token_binding(self, name: str) -> str | None:
+        """A digest of ``name``'s current token (None: no such user). A credential derived from the token (a
+        login cookie) carries it, so rotating the token or removing the user ends it; the stored hash itself
+        never leaves this module."""
+        record = self._record(name)
+        if record is None:
+            return None
+        return hashlib.sha256(("binding:" + record["token_sha256"]).encode()).hexdigest()[:32]
+
     def is_empty(self) -> bool:
         return not self._current().records
 
     def list(self) -> list[User]:
         """Every user, by name; token hashes stay inside."""
         return sorted((_user(r) for r in self._current().records), key=lambda user: user.name)
+
+    def _record(self, name: str) -> dict | None:
+        return self._current().by_name.get(name)
 
     def _current(self) -> _Snapshot:
         try:
@@ -163,7 +180,8 @@ def _read(path: Path) -> _Snapshot:
     if document.get("version") != FORMAT_VERSION:
         raise InternalError(f"users file format {document.get('version')!r} is not {FORMAT_VERSION}; upgrade curvefm")
     records = tuple(document["users"])
-    return _Snapshot(key=key, records=records, by_hash={r["token_sha256"]: r for r in records})
+    by_hash, by_name = {r["token_sha256"]: r for r in records}, {r["name"]: r for r in records}
+    return _Snapshot(key=key, records=records, by_hash=by_hash, by_name=by_name)
 
 
 def _stat_key(stat: os.stat_result) -> tuple[int, int, int]:

@@ -5,7 +5,7 @@ curves a user draws, kept as a record on disk and, in a long-running process, li
 * ``record``: the persisted :class:`SessionRecord` (and :class:`SessionCreate`, what a new one is made of;
   both validate ``k``, ``alpha`` and ``samples`` with the same types);
 * ``record_store``: :class:`SessionStore`, records read and written atomically under ``<data>/sessions/``,
-  with a revision number per write;
+  with a revision number per write, and the refinement jobs run from each session;
 * ``pair``: the :class:`ShapePair` (:mod:`curvefm.spectral`'s) loaded from the store, and the session's solver
   rebuilt from a record (:func:`build_solver`; its curve ids are the record's);
 * ``live``: :class:`LiveSessions`, the bounded in-memory cache of solvers, shapes, bases and transfers, with a
@@ -38,12 +38,23 @@ from curvefm.session.pair import (
     load_basis,
     load_pair,
 )
-from curvefm.session.record import Alpha, CurveRecord, MapSize, Samples, SessionCreate, SessionRecord, VertexPath
+from curvefm.session.record import (
+    SHARING_DESCRIPTION,
+    Alpha,
+    CurveRecord,
+    MapSize,
+    Samples,
+    SessionCreate,
+    SessionRecord,
+    Sharing,
+    VertexPath,
+)
 from curvefm.session.record_store import SessionStore, UnknownSession
 from curvefm.spectral import ShapePair  # defined below the maps that use it; the session's pair is the same type
 
 __all__ = [
     "MAX_VERTEX_ID",
+    "SHARING_DESCRIPTION",
     "Alpha",
     "BasisNeed",
     "CurveRecord",
@@ -61,6 +72,7 @@ __all__ = [
     "SessionRecord",
     "SessionStore",
     "ShapePair",
+    "Sharing",
     "TransferFunction",
     "UnknownSession",
     "UnknownShape",

@@ -1,4 +1,5 @@
-"""The operations on sessions: create one, add / replace / remove curves, read the maps, transfer a function.
+"""The operations on sessions: create one, add / replace / remove curves, read the maps, transfer a function,
+share one, delete one. (Who may do which is the caller's to decide: the API checks the record's owner and sharing.)
 
 An edit changes the live solver and writes the record (atomically, with the next revision) before it returns,
 so an acknowledged edit survives a restart. Edits of one session are serialised by its locks, within the
@@ -27,7 +28,7 @@ from curvefm.session.curves import CurveSpec, trace_pair
 from curvefm.session.limits import SessionLimits
 from curvefm.session.live import LiveSession, LiveSessions
 from curvefm.session.pair import MissingBasis, basis_available, basis_needs, internal_paths
-from curvefm.session.record import CurveRecord, SessionCreate, SessionRecord
+from curvefm.session.record import CurveRecord, SessionCreate, SessionRecord, Sharing
 from curvefm.session.record_store import SessionStore
 from curvefm.spectral import check_k
 
@@ -60,13 +61,14 @@ class SessionEditor:
         self.records, self.live, self.find_plugin = records, live, find_plugin
         self.limits = limits or SessionLimits()
 
-    def create(self, request: SessionCreate, session_id: str | None = None) -> SessionRecord:
-        """A new session; both shapes must already have bases with at least ``k`` functions."""
+    def create(self, request: SessionCreate, session_id: str | None = None, owner: str = "") -> SessionRecord:
+        """A new session of ``owner``; both shapes must already have bases with at least ``k`` functions."""
         self.find_plugin("tracer", request.tracer)
         basis_params = self.find_plugin("basis", request.basis_plugin).parse_params(request.basis_params)
         now = time.time()
         record = SessionRecord(
             id=session_id or secrets.token_hex(8),
+            owner=owner,
             basis_params=basis_params.model_dump(),
             created_at=now,
             updated_at=now,
@@ -115,6 +117,18 @@ class SessionEditor:
             solve_ms = _ms_since(started)
             self._commit(live, curves=[c for c in live.record.curves if c.id != curve_id])
             return _summary(live, solve_ms)
+
+    def share(self, session_id: str, sharing: Sharing) -> SessionRecord:
+        """Change who may use the session. Only the record is written: a live session takes the new revision up
+        on its next use, as after another process's edit."""
+        with self.live.lock(session_id), self.records.locked(session_id):
+            return self.records.write(self.records.read(session_id).model_copy(update={"sharing": sharing}))
+
+    def delete(self, session_id: str) -> list[str]:
+        """Delete the session; returns the ids of the refinement jobs run from it."""
+        with self.live.lock(session_id), self.records.locked(session_id):
+            self.live.drop(session_id)
+            return self.records.delete(session_id)
 
     # -- maps and transfer --------------------------------------------------------------------------------
     def maps(self, session_id: str) -> tuple[np.ndarray, np.ndarray, SessionRecord]:

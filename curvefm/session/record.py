@@ -12,7 +12,7 @@ request for a new session (:class:`SessionCreate`) and the record share.
 from __future__ import annotations
 
 from array import array
-from typing import Annotated
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, PlainSerializer, PlainValidator
@@ -23,6 +23,11 @@ from curvefm.session.curves import MAX_VERTEX_ID, CurveSpec, VertexId
 MapSize = Annotated[int, Field(ge=1, description="basis functions per shape: the maps are k x k")]
 Alpha = Annotated[float, Field(ge=0, allow_inf_nan=False, description="weight of Laplacian commutativity")]
 Samples = Annotated[int, Field(ge=2, le=10_000, description="samples per curve")]
+Sharing = Literal["private", "read", "edit"]
+SHARING_DESCRIPTION = (
+    "who besides the owner (and admins) may use the session: private (nobody), read (every user may read it and "
+    "refine from it), edit (every user may also change its curves); only the owner or an admin changes this"
+)
 
 
 def _vertex_path(value) -> array:
@@ -60,6 +65,7 @@ class SessionCreate(BaseModel):
     basis_plugin: str = "laplace-beltrami"
     basis_params: dict = Field(default_factory=dict)
     name: str = Field("", max_length=200)
+    sharing: Sharing = Field("private", description=SHARING_DESCRIPTION)
 
 
 class CurveRecord(BaseModel):
@@ -77,6 +83,8 @@ class SessionRecord(BaseModel):
     model_config = ConfigDict(extra="forbid")
     id: str
     name: str = ""
+    owner: str = Field("", description="the user who created it (empty: made before users existed; admins only)")
+    sharing: Sharing = Field("private", description=SHARING_DESCRIPTION)
     source: str = Field(description="shape id of M, the source")
     target: str = Field(description="shape id of N, the target")
     k: MapSize

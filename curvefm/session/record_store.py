@@ -1,4 +1,5 @@
-"""The session records on disk: ``<data>/sessions/<id>.json``, one JSON file per session.
+"""The session records on disk: ``<data>/sessions/<id>.json``, one JSON file per session, and beside it
+``<id>.jobs``, the ids of the refinement jobs run from it (one a line), so deleting a session finds its results.
 
 Every write replaces the whole file atomically (:func:`curvefm.store.atomic_write`: temporary file, fsync,
 rename), so a reader, another process or a restarted API, sees the previous record or the new one, never half
@@ -88,6 +89,30 @@ class SessionStore:
         finally:
             os.close(descriptor)  # releases the lock
 
+    def delete(self, session_id: str) -> list[str]:
+        """Remove the record; returns the ids of the refinement jobs run from it (their results are the
+        caller's to delete)."""
+        if not self.exists(session_id):
+            raise UnknownSession(session_id)
+        jobs = self.jobs(session_id)
+        self._path(session_id).unlink()
+        self._jobs_path(session_id).unlink(missing_ok=True)
+        return jobs
+
+    def add_job(self, session_id: str, job_id: str) -> None:
+        """Note a refinement job run from the session (one appended line: writers never interleave)."""
+        fd = os.open(self._jobs_path(session_id), os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        try:
+            os.write(fd, f"{job_id}\n".encode())
+        finally:
+            os.close(fd)
+
+    def jobs(self, session_id: str) -> list[str]:
+        try:
+            return self._jobs_path(session_id).read_text().split()
+        except FileNotFoundError:
+            return []
+
     def write(self, record: SessionRecord) -> SessionRecord:
         """Replace the stored record by ``record`` with the next revision and the current time; returns what
         was written."""
@@ -105,6 +130,9 @@ class SessionStore:
 
     def _path(self, session_id: str) -> Path:
         return self.folder / f"{session_id}.json"
+
+    def _jobs_path(self, session_id: str) -> Path:
+        return self.folder / f"{session_id}.jobs"
 
 
 def well_formed(session_id: str) -> bool:
