@@ -81,8 +81,8 @@ def bench_single(client, ids, k, n_vertices, count, rng) -> dict:
     return {"curves": count, **percentiles(round_trips), "server_solve_p50_ms": percentiles(solves)["p50_ms"]}
 
 
-def bench_concurrent(url, ids, k, n_vertices, sessions, per_session, rng) -> dict:
-    clients = [httpx.Client(base_url=url, timeout=120) for _ in range(sessions)]
+def bench_concurrent(url, headers, ids, k, n_vertices, sessions, per_session, rng) -> dict:
+    clients = [httpx.Client(base_url=url, timeout=120, headers=headers) for _ in range(sessions)]
     session_ids = [new_session(client, ids, k) for client in clients]
     for client, session_id in zip(clients, session_ids, strict=True):
         add_curves(client, session_id, rng.integers(0, n_vertices, (1, 2)))
@@ -122,15 +122,15 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="curvefm-bench-") as scratch:
-        server, url = start_server(args.data or Path(scratch))
+        server, url, headers = start_server(args.data or Path(scratch))
         try:
-            with httpx.Client(base_url=url, timeout=600) as client:
+            with httpx.Client(base_url=url, timeout=600, headers=headers) as client:
                 started = time.perf_counter()
                 ids, n_vertices = prepare_pair(client, args.k)
                 prepare_s = time.perf_counter() - started
                 rng = np.random.default_rng(args.seed)
                 single = bench_single(client, ids, args.k, n_vertices, args.curves, rng)
-            concurrent = bench_concurrent(url, ids, args.k, n_vertices, args.sessions, args.per_session, rng)
+            concurrent = bench_concurrent(url, headers, ids, args.k, n_vertices, args.sessions, args.per_session, rng)
         finally:
             server.kill()
             server.wait()

@@ -58,7 +58,7 @@ def http_ms(folder: Path, redis_url: str, calls: int) -> dict:
             args = ("--rate-limit", rate, "--rate-burst", "1000000", *redis)
             prefix = {"CURVEFM_QUEUE_PREFIX": f"bench-{uuid.uuid4().hex[:8]}-"}
             servers[name] = start_server(folder / name, args, prefix)
-        clients = {name: httpx.Client(base_url=url) for name, (_, url) in servers.items()}
+        clients = {name: httpx.Client(base_url=url, headers=headers) for name, (_, url, headers) in servers.items()}
         times = {name: [] for name in servers}
         for _ in range(50 + calls):
             for name, client in clients.items():
@@ -67,7 +67,7 @@ def http_ms(folder: Path, redis_url: str, calls: int) -> dict:
                 times[name].append(time.perf_counter() - started)
         return {name: round(1e3 * statistics.median(values[50:]), 3) for name, values in times.items()}
     finally:
-        for server, _ in servers.values():
+        for server, _, _ in servers.values():
             server.kill()
             server.wait()
 

@@ -12,6 +12,8 @@ from pathlib import Path
 
 import httpx
 
+from curvefm.access import UserStore
+from curvefm.errors import Conflict
 from curvefm.store import Store
 
 REPO = Path(__file__).resolve().parents[1]
@@ -43,11 +45,22 @@ def median_ms(fn, repeat: int) -> float:
     return 1e3 * statistics.median(times)
 
 
+def bench_token(data: Path) -> str:
+    """A token of the user ``bench`` on the data directory (made, or rotated when it exists)."""
+    users = UserStore(data)
+    try:
+        return users.add("bench")
+    except Conflict:
+        return users.rotate("bench")
+
+
 def start_server(
     data: Path, args: tuple[str, ...] = ("--rate-limit", "0"), env: dict[str, str] | None = None
-) -> tuple[subprocess.Popen, str]:
+) -> tuple[subprocess.Popen, str, dict[str, str]]:
     """``curvefm serve`` (embedded jobs unless ``args`` name a Redis) on a free port with data in ``data``:
-    (process, base url). By default without a rate limit: benchmarks load the server from one client."""
+    (process, base url, the headers that authenticate a request as the user ``bench``). By default without a
+    rate limit: benchmarks load the server from one client."""
+    headers = {"Authorization": f"Bearer {bench_token(data)}"}
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
@@ -59,7 +72,7 @@ def start_server(
     while time.monotonic() < deadline:
         try:
             if httpx.get(f"{url}/health", timeout=1).status_code == 200:
-                return server, url
+                return server, url, headers
         except httpx.TransportError:
             time.sleep(0.1)
     server.kill()

@@ -5,11 +5,15 @@ from __future__ import annotations
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
-from fastapi import FastAPI
+from fastapi import APIRouter, FastAPI, Request
+from fastapi.openapi.docs import get_swagger_ui_html
+from fastapi.responses import HTMLResponse, JSONResponse
 from starlette.exceptions import HTTPException
 
+from curvefm.access import UserStore
 from curvefm.errors import LimitExceeded
-from curvefm.service import routes_audit, routes_jobs, routes_sessions, routes_shapes
+from curvefm.service import routes_audit, routes_auth, routes_jobs, routes_sessions, routes_shapes
+from curvefm.service.auth import AUTHENTICATED, LOCAL_ADMIN
 from curvefm.service.deps import start_services
 from curvefm.service.errors import error_response, error_responses, install_error_handlers
 from curvefm.service.headers import SecurityHeaders, ui_csp
@@ -26,7 +30,11 @@ DESCRIPTION = """Interactive curve-constrained functional maps between 3D shapes
 Upload shapes, request their bases (a job), create a session on a pair, add corresponding curves (answered at
 once), fetch the map or a transferred function, and request pointwise maps (a job). Vertex ids are 0-based
 ids in the uploaded files. Errors are JSON: `{"error": kind, "detail": message}`; an internal error (500)
-adds an `error_id` that the server log files its details under."""
+adds an `error_id` that the server log files its details under.
+
+Every route but `GET /health` needs credentials: `Authorization: Bearer TOKEN` (`curvefm users add NAME` prints a
+token), or the login cookie the web page gets for one. Shapes are shared by all users; sessions, jobs and results
+belong to their owner and are private unless shared."""
 
 
 class BodyTooLarge(HTTPException):
@@ -93,7 +101,14 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             await buckets.close()
 
     app = FastAPI(
-        title="curvefm", version="0.1.0", description=DESCRIPTION, lifespan=lifespan, responses=error_responses(500)
+        title="curvefm",
+        version="0.1.0",
+        description=DESCRIPTION,
+        lifespan=lifespan,
+        responses=error_responses(500),
+        openapi_url=None,  # served by documentation_routes(), behind credentials like the rest of the API
+        docs_url=None,
+        redoc_url=None,
     )
     install_error_handlers(app)
     install_hints(app)
@@ -103,8 +118,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.add_middleware(RateLimit, settings=settings, buckets=buckets, exempt=is_unlimited)
     app.add_middleware(HostCheck, allowed=settings.allowed_hosts)
     app.add_middleware(SecurityHeaders, csp=ui_csp(INDEX_HTML))
-    for module in (routes_shapes, routes_sessions, routes_jobs, routes_audit):
+    for module in (routes_auth, routes_shapes, routes_sessions, routes_jobs, routes_audit):
         app.include_router(module.router)
+    app.include_router(routes_jobs.public)
+    app.include_router(documentation_routes())
     mount_ui(app)  # last: its catch-all mount at / must not shadow the API routes
     return app
 
@@ -112,6 +129,35 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 def is_unlimited(path: str) -> bool:
     """``/health`` and the UI's static files are not rate limited."""
     return path == "/health" or is_ui_path(path)
+
+
+def documentation_routes() -> APIRouter:
+    """``/openapi.json`` and ``/docs`` (Swagger UI), for users only (the page sends the login cookie)."""
+    router = APIRouter(dependencies=AUTHENTICATED, include_in_schema=False)
+
+    @router.get("/openapi.json")
+    def openapi(request: Request) -> JSONResponse:
+        return JSONResponse(request.app.openapi())
+
+    @router.get("/docs")
+    def docs() -> HTMLResponse:
+        return get_swagger_ui_html(openapi_url="/openapi.json", title="curvefm API")
+
+    return router
+
+
+def login_instructions(users: UserStore, host: str, port: int) -> str:
+    """What ``curvefm serve`` prints: the login URL of a local admin it creates when there is no user, else how
+    to log in (tokens are stored hashed, so an existing one cannot be shown again)."""
+    shown_host = "127.0.0.1" if host in ("", "0.0.0.0", "::") else f"[{host}]" if ":" in host else host
+    url = f"http://{shown_host}:{port}/?token="
+    token = users.ensure_local_admin(LOCAL_ADMIN)
+    if token is not None:
+        return f"curvefm: created the admin user '{LOCAL_ADMIN}'. Open this URL to log in:\n\n    {url}{token}\n"
+    return (
+        f"curvefm: log in by opening {url}YOUR_TOKEN (an admin makes a token with 'curvefm users add NAME', "
+        "or a new one with 'curvefm users token NAME --rotate')"
+    )
 
 
 def serve_main(host: str = LOOPBACK_NAMES[1], port: int = 8000, log_level: str = "info", **overrides) -> None:
@@ -125,5 +171,6 @@ def serve_main(host: str = LOOPBACK_NAMES[1], port: int = 8000, log_level: str =
     settings = Settings.from_env(bind_host=host, **overrides)
     if settings.redis_url:
         check_redis(settings.redis_url)  # a wrong password is one line (exit 2), not a traceback at startup
+    print(login_instructions(UserStore(settings.data_dir), host, port), flush=True)
     app = create_app(settings)
     uvicorn.run(app, host=host, port=port, log_level=log_level, log_config=log_config(log_level))

@@ -2,7 +2,8 @@
 
 The source is a four-legged "animal" (a sphere pushed out into legs, a head and a tail); the target is a
 strongly non-isometric deformation of it with the same connectivity (fatter belly, longer legs, bigger head,
-raised tail), so vertex i corresponds to vertex i. The session is stored under the id ``demo``.
+raised tail), so vertex i corresponds to vertex i. The session is stored under the id ``demo``, owned by the
+local admin and shared editable with every user.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from curvefm import registry
 from curvefm.errors import InternalError
 from curvefm.fmap import DEFAULT_K
 from curvefm.geometry import Mesh, build_mesh
+from curvefm.service.auth import LOCAL_ADMIN
 from curvefm.service.deps import Services, submit_basis
 from curvefm.session import CurveSpec, SessionCreate
 
@@ -99,12 +101,15 @@ def prepare_demo(services: Services, stop: threading.Event, k: int = DEFAULT_K) 
         return
     meshes = demo_shapes()
     ids = [services.store.put_mesh(mesh) for mesh in meshes]
+    for mesh_id in ids:
+        services.store.add_uploader(mesh_id, LOCAL_ADMIN)
     params = registry.get("basis", "laplace-beltrami").parse_params({}).model_dump()
-    jobs = [submit_basis(services, mesh_id, k, "laplace-beltrami", params) for mesh_id in ids]
+    jobs = [submit_basis(services, mesh_id, k, "laplace-beltrami", params, LOCAL_ADMIN) for mesh_id in ids]
     for mesh, job in zip(meshes, jobs, strict=True):
         if not _wait(services, job.id, f"basis of {mesh.name} ({mesh.n_vertices} vertices, k={k})", stop):
             return
-    services.sessions.create(SessionCreate(source=ids[0], target=ids[1], k=k, name="demo"), DEMO_SESSION)
+    request = SessionCreate(source=ids[0], target=ids[1], k=k, name="demo", sharing="edit")
+    services.sessions.create(request, DEMO_SESSION, owner=LOCAL_ADMIN)
     for spec in demo_curves(meshes[0]):
         services.sessions.add_curve(DEMO_SESSION, spec)
     log.info("demo session '%s' is ready: open /?session=%s", DEMO_SESSION, DEMO_SESSION)

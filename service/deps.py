@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import threading
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 from typing import Annotated
 
 from fastapi import Depends, Request
 
-from curvefm.access import AuditLog, Usage, UserStore
+from curvefm.access import AuditLog, Usage, UserStore, signing_key
 from curvefm.service.errors import error_responses, require_plugin
 from curvefm.service.expiry import start_expiry
+from curvefm.service.login import LoginCookies
 from curvefm.service.models import JobInfoModel
 from curvefm.service.quotas import Quotas
 from curvefm.service.settings import Settings
@@ -34,6 +36,7 @@ class Services:
     users: UserStore
     audit: AuditLog
     quotas: Quotas
+    logins: LoginCookies
     stop_events: list[threading.Event] = field(default_factory=list)
 
     def close(self) -> None:
@@ -59,7 +62,8 @@ def start_services(settings: Settings) -> Services:
     sessions = SessionEditor(records, live, find_plugin=require_plugin, limits=settings.session_limits)
     quotas = Quotas(settings, Usage(store.root), store, records, queue)
     users, audit = UserStore(store.root), AuditLog(store.root)
-    services = Services(settings, store, queue, records, live, sessions, users, audit, quotas)
+    logins = LoginCookies(signing_key(store.root), users, settings.login_ttl_s)
+    services = Services(settings, store, queue, records, live, sessions, users, audit, quotas, logins)
     expiry = start_expiry(queue, store.root / "results", settings.job_ttl_s, settings.expiry_interval_s)
     services.stop_events.append(expiry)
     return services
@@ -70,6 +74,17 @@ def get_services(request: Request) -> Services:
 
 
 ServicesDep = Annotated[Services, Depends(get_services)]
+
+
+def results_dir(services: Services, job_id: str) -> Path:
+    """Where a refinement job's files are (``curvefm.workers.jobs.refine`` writes them)."""
+    return services.store.root / "results" / job_id
+
+
+def refined_session(services: Services, job_id: str) -> str | None:
+    """The session a refinement job was run from (None for other jobs, or one without a stored record)."""
+    stored = services.queue.records.load(job_id)
+    return stored.kwargs["session"]["id"] if stored is not None and stored.info.kind == "refine" else None
 
 
 def job_links(info: JobInfo) -> dict[str, str]:
@@ -85,8 +100,8 @@ def job_model(info: JobInfo) -> JobInfoModel:
     return JobInfoModel(**asdict(info), links=job_links(info))
 
 
-def submit_basis(services: Services, mesh_id: str, k: int, plugin: str, params: dict) -> JobInfo:
-    """Queue a basis job (``params`` canonical), deduplicated by (shape, plugin, k, parameters)."""
+def submit_basis(services: Services, mesh_id: str, k: int, plugin: str, params: dict, owner: str) -> JobInfo:
+    """Queue a basis job of ``owner`` (``params`` canonical), deduplicated by (shape, plugin, k, parameters)."""
     kwargs = {
         "data_dir": str(services.store.root),
         "mesh_id": mesh_id,
@@ -94,4 +109,5 @@ def submit_basis(services: Services, mesh_id: str, k: int, plugin: str, params: 
         "plugin": plugin,
         "params": params,
     }
-    return services.queue.submit("basis", kwargs, dedupe_key=f"basis:{mesh_id}:{plugin}:{k}:{params_key(params)}")
+    dedupe_key = f"basis:{mesh_id}:{plugin}:{k}:{params_key(params)}"
+    return services.queue.submit("basis", kwargs, dedupe_key=dedupe_key, owner=owner)

@@ -26,6 +26,7 @@ from curvefm.errors import (
     NotFound,
     ResourceLimit,
     TooMany,
+    Unauthenticated,
     Unavailable,
     shown,
 )
@@ -38,6 +39,7 @@ log = logging.getLogger("curvefm.service")
 STATUS: dict[type[CurvefmError], int] = {
     CurvefmError: 400,  # raised as such (e.g. by a third-party plugin): a user error
     InvalidInput: 400,
+    Unauthenticated: 401,
     Forbidden: 403,
     NotFound: 404,
     Conflict: 409,
@@ -91,6 +93,8 @@ def error_response(exc: CurvefmError, detail: str | None = None) -> JSONResponse
         headers["Retry-After"] = str(RETRY_AFTER_S)
     if isinstance(exc, TooMany) and exc.retry_after is not None:
         headers["Retry-After"] = str(max(1, math.ceil(exc.retry_after)))
+    if isinstance(exc, Unauthenticated):
+        headers["WWW-Authenticate"] = "Bearer"
     return JSONResponse(body, status_code=status_of(exc), headers=headers)
 
 

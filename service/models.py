@@ -11,7 +11,7 @@ from __future__ import annotations
 from pydantic import BaseModel, ConfigDict, Field
 
 from curvefm.fmap import DEFAULT_K
-from curvefm.session import CurveRecord, MapSummary
+from curvefm.session import SHARING_DESCRIPTION, CurveRecord, MapSummary, Sharing
 from curvefm.workers.interface import JobState
 
 
@@ -22,7 +22,8 @@ class FieldProblem(BaseModel):
 
 class ErrorBody(BaseModel):
     error: str = Field(
-        description="invalid, not_found, forbidden, conflict, too_large, too_many, internal or unavailable"
+        description="invalid, unauthenticated, forbidden, not_found, conflict, too_large, too_many, internal or "
+        "unavailable"
     )
     detail: str = Field(description="what was wrong and what to do")
     limit: str | None = Field(
@@ -54,6 +55,7 @@ class ShapeInfo(BaseModel):
     n_faces: int
     n_file_vertices: int = Field(description="vertices in the file; file ids are 0..n_file_vertices-1")
     has_uv: bool
+    uploaders: list[str] = Field(description="who uploaded it (they, and admins, may delete it)")
     report: dict = Field(description="what validation changed or noticed")
     bases: list[BasisInfo]
 
@@ -83,11 +85,14 @@ class JobInfoModel(BaseModel):
     created_at: float | None = None
     started_at: float | None = None
     ended_at: float | None = None
+    owner: str | None = Field(None, description="the user who started it (only they, or an admin, cancel it)")
 
 
 class SessionSummary(BaseModel):
     id: str
     name: str
+    owner: str
+    sharing: Sharing
     source: str
     target: str
     k: int
@@ -106,6 +111,16 @@ class MapResponse(BaseModel):
     k: int
     C_source_to_target: list[list[float]] = Field(description="C_MN: coefficients on M -> coefficients on N")
     C_target_to_source: list[list[float]] = Field(description="C_NM")
+
+
+class SessionChange(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    sharing: Sharing = Field(description=SHARING_DESCRIPTION)
+
+
+class UserInfo(BaseModel):
+    name: str
+    admin: bool
 
 
 class RefineRequest(BaseModel):

@@ -1,4 +1,4 @@
-"""``/jobs``, ``/plugins`` and ``/health``."""
+"""``/jobs``, ``/plugins`` and ``/health`` (the one route that needs no credentials)."""
 
 from __future__ import annotations
 
@@ -8,41 +8,55 @@ from fastapi import APIRouter
 from fastapi.responses import FileResponse
 
 from curvefm import registry
-from curvefm.errors import NotFound, shown
-from curvefm.service.deps import JOB_ERRORS, ServicesDep, job_model
+from curvefm.errors import Conflict, NotFound, shown
+from curvefm.service.auth import AUTHENTICATED, CurrentUser
+from curvefm.service.deps import JOB_ERRORS, ServicesDep, job_model, refined_session, results_dir
 from curvefm.service.errors import error_responses
 from curvefm.service.models import JobInfoModel
+from curvefm.service.permissions import job_for
 
-router = APIRouter()
+router = APIRouter(dependencies=AUTHENTICATED, responses=error_responses(401, 403))
+public = APIRouter()
 ERRORS = {**error_responses(404, 409, 422), **JOB_ERRORS}
 _SAFE_NAME = re.compile(r"^[A-Za-z0-9_-][A-Za-z0-9_.-]{0,127}$")
 
 
 @router.get("/jobs/{job_id}", response_model=JobInfoModel, responses=ERRORS, tags=["jobs"])
-def get_job(job_id: str, services: ServicesDep) -> JobInfoModel:
+def get_job(job_id: str, services: ServicesDep, user: CurrentUser) -> JobInfoModel:
     """State, progress (0..1 with a message), links to results, or why the job failed (a kind and one line).
     ``lost``: the queue lost the job (its Redis restarted empty, or the service restarted while running it
     in-process); ``message`` says so, and ``POST /jobs/{id}/retry`` runs it again."""
-    return job_model(services.queue.get(job_id))
+    return job_model(job_for(services, user, job_id))
 
 
 @router.post("/jobs/{job_id}/retry", status_code=202, response_model=JobInfoModel, responses=ERRORS, tags=["jobs"])
-def retry_job(job_id: str, services: ServicesDep) -> JobInfoModel:
-    """Run a lost, failed or canceled job again (same kind, arguments and owner) and answer the new job;
-    any other state answers 409. Retrying again while the new job is queued or running answers that job."""
-    return job_model(services.queue.retry(job_id))
+def retry_job(job_id: str, services: ServicesDep, user: CurrentUser) -> JobInfoModel:
+    """Run a lost, failed or canceled job again (same kind, arguments and owner: the user who started it, or an
+    admin) and answer the new job; any other state answers 409. Retrying again while the new job is queued or
+    running answers that job. A refinement whose session was deleted is not run again (409)."""
+    job_for(services, user, job_id, act=True)
+    session_id = refined_session(services, job_id)
+    if session_id is not None and not services.records.exists(session_id):
+        raise Conflict(f"job {job_id} refined session {session_id}, which was deleted; there is nothing to retry")
+    info = services.queue.retry(job_id)
+    if session_id is not None:
+        services.records.add_job(session_id, info.id)
+    return job_model(info)
 
 
 @router.delete("/jobs/{job_id}", response_model=JobInfoModel, responses=ERRORS, tags=["jobs"])
-def cancel_job(job_id: str, services: ServicesDep) -> JobInfoModel:
-    """Cancel a queued job, or stop a running one; a job that already ended answers 409."""
+def cancel_job(job_id: str, services: ServicesDep, user: CurrentUser) -> JobInfoModel:
+    """Cancel a queued job, or stop a running one (the user who started it, or an admin); a job that already
+    ended answers 409."""
+    job_for(services, user, job_id, act=True)
     return job_model(services.queue.cancel(job_id))
 
 
 @router.get("/jobs/{job_id}/files/{name}", responses=error_responses(404, 422), tags=["jobs"])
-def get_job_file(job_id: str, name: str, services: ServicesDep) -> FileResponse:
-    """A file a refinement job wrote (listed in its ``links``)."""
-    path = services.store.root / "results" / job_id / name
+def get_job_file(job_id: str, name: str, services: ServicesDep, user: CurrentUser) -> FileResponse:
+    """A file a refinement job wrote (listed in its ``links``); whoever may see the job may fetch it."""
+    job_for(services, user, job_id)
+    path = results_dir(services, job_id) / name
     if not (_SAFE_NAME.match(job_id) and _SAFE_NAME.match(name) and path.is_file()):
         raise NotFound(f"job {shown(job_id)} has no result file '{shown(name)}'")
     return FileResponse(path, filename=name)
@@ -54,7 +68,7 @@ def list_plugins() -> dict[str, list[dict]]:
     return registry.describe_all()
 
 
-@router.get("/health", tags=["service"], responses=JOB_ERRORS)
+@public.get("/health", tags=["service"], responses=JOB_ERRORS)
 def health(services: ServicesDep) -> dict:
     """``ok`` and how jobs run (``embedded`` or ``redis``); 503 while the job queue's Redis does not answer."""
     services.queue.check()

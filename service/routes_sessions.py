@@ -1,68 +1,109 @@
-"""``/sessions``: a shape pair, its curves, the maps both ways, transfers and refinement jobs."""
+"""``/sessions``: a shape pair, its curves, the maps both ways, transfers and refinement jobs; sharing and
+deleting. Who may do which: :mod:`curvefm.service.permissions`."""
 
 from __future__ import annotations
 
+import contextlib
+import shutil
 from typing import Annotated
 
 from fastapi import APIRouter, Query, Response
 
-from curvefm.errors import Conflict, InvalidInput, shown
-from curvefm.service.auth import MaybeUser
-from curvefm.service.deps import JOB_ERRORS, ServicesDep, job_model
+from curvefm.errors import Conflict, CurvefmError, InvalidInput, shown
+from curvefm.service.auth import AUTHENTICATED, CurrentUser
+from curvefm.service.deps import JOB_ERRORS, Services, ServicesDep, job_model, results_dir
 from curvefm.service.errors import error_responses, require_plugin
-from curvefm.service.models import CurveEdit, JobInfoModel, MapResponse, RefineRequest, SessionSummary
+from curvefm.service.models import (
+    CurveEdit,
+    JobInfoModel,
+    MapResponse,
+    RefineRequest,
+    SessionChange,
+    SessionSummary,
+)
+from curvefm.service.permissions import may_read, session_for
 from curvefm.session import MAX_VERTEX_ID, CurveSpec, SessionCreate, SessionRecord, TransferFunction
 from curvefm.spectral import check_k
 
-router = APIRouter(tags=["sessions"])
+router = APIRouter(tags=["sessions"], dependencies=AUTHENTICATED, responses=error_responses(401, 403))
 ERRORS = error_responses(400, 404, 409, 413, 422)
 QUOTA_ERRORS = error_responses(400, 404, 409, 413, 422, 429)
 
 
 @router.post("/sessions", status_code=201, response_model=SessionRecord, responses=QUOTA_ERRORS)
-def create_session(body: SessionCreate, services: ServicesDep, user: MaybeUser) -> SessionRecord:
-    """Create a session on two shapes. Both need a basis with at least ``k`` functions already (409 names
-    the missing ones and how to request them). 429 at the user's sessions quota."""
+def create_session(body: SessionCreate, services: ServicesDep, user: CurrentUser) -> SessionRecord:
+    """Create a session of yours on two shapes (private unless ``sharing`` says otherwise). Both need a basis
+    with at least ``k`` functions already (409 names the missing ones and how to request them). 429 at your
+    sessions quota."""
     with services.quotas.admit(user, "sessions") as charge:
-        record = services.sessions.create(body)
+        record = services.sessions.create(body, owner=user.name)
         charge(record.id)
+    services.audit.record(user.name, "session.create", record.id, {"sharing": record.sharing})
     return record
 
 
 @router.get("/sessions", response_model=list[SessionSummary])
-def list_sessions(services: ServicesDep) -> list[SessionSummary]:
+def list_sessions(services: ServicesDep, user: CurrentUser) -> list[SessionSummary]:
+    """The sessions you may see: yours, those shared with the lab, and (for admins) all."""
     return [
         SessionSummary(n_curves=len(r.curves), **r.model_dump(include=set(SessionSummary.model_fields) - {"n_curves"}))
         for r in services.records.list()
+        if may_read(user, r)
     ]
 
 
 @router.get("/sessions/{session_id}", response_model=SessionRecord, responses=ERRORS)
-def get_session(session_id: str, services: ServicesDep) -> SessionRecord:
-    return services.sessions.record(session_id)
+def get_session(session_id: str, services: ServicesDep, user: CurrentUser) -> SessionRecord:
+    return session_for(services, user, session_id, "read")
+
+
+@router.patch("/sessions/{session_id}", response_model=SessionRecord, responses=ERRORS)
+def change_session(session_id: str, body: SessionChange, services: ServicesDep, user: CurrentUser) -> SessionRecord:
+    """Share the session with the lab (``read`` or ``edit``) or make it ``private`` again: its owner or an admin."""
+    session_for(services, user, session_id, "manage")
+    record = services.sessions.share(session_id, body.sharing)
+    services.audit.record(user.name, "session.share", session_id, {"sharing": body.sharing})
+    return record
+
+
+@router.delete("/sessions/{session_id}", status_code=204, responses=ERRORS)
+def delete_session(session_id: str, services: ServicesDep, user: CurrentUser) -> Response:
+    """Delete the session and the result files of its refinement jobs (running ones are canceled first): its
+    owner or an admin."""
+    session_for(services, user, session_id, "manage")
+    for job_id in services.sessions.delete(session_id):
+        _discard_job(services, job_id)
+    services.audit.record(user.name, "session.delete", session_id)
+    return Response(status_code=204)
 
 
 @router.post("/sessions/{session_id}/curves", status_code=201, response_model=CurveEdit, responses=ERRORS)
-def add_curve(session_id: str, body: CurveSpec, services: ServicesDep) -> CurveEdit:
+def add_curve(session_id: str, body: CurveSpec, services: ServicesDep, user: CurrentUser) -> CurveEdit:
     """Trace a curve pair (waypoints joined by the tracer, or ``explicit`` vertex paths; file ids), update
     both maps, store the session, then answer with the traced paths and the new map summary."""
+    session_for(services, user, session_id, "edit")
     curve, summary = services.sessions.add_curve(session_id, body)
     return CurveEdit(curve=curve, map=summary)
 
 
 @router.put("/sessions/{session_id}/curves/{curve_id}", response_model=CurveEdit, responses=ERRORS)
-def replace_curve(session_id: str, curve_id: str, body: CurveSpec, services: ServicesDep) -> CurveEdit:
+def replace_curve(
+    session_id: str, curve_id: str, body: CurveSpec, services: ServicesDep, user: CurrentUser
+) -> CurveEdit:
+    session_for(services, user, session_id, "edit")
     curve, summary = services.sessions.replace_curve(session_id, curve_id, body)
     return CurveEdit(curve=curve, map=summary)
 
 
 @router.delete("/sessions/{session_id}/curves/{curve_id}", response_model=CurveEdit, responses=ERRORS)
-def remove_curve(session_id: str, curve_id: str, services: ServicesDep) -> CurveEdit:
+def remove_curve(session_id: str, curve_id: str, services: ServicesDep, user: CurrentUser) -> CurveEdit:
+    session_for(services, user, session_id, "edit")
     return CurveEdit(map=services.sessions.remove_curve(session_id, curve_id))
 
 
 @router.get("/sessions/{session_id}/map", response_model=MapResponse, responses=ERRORS)
-def get_map(session_id: str, services: ServicesDep) -> MapResponse:
+def get_map(session_id: str, services: ServicesDep, user: CurrentUser) -> MapResponse:
+    session_for(services, user, session_id, "read")
     C_MN, C_NM, record = services.sessions.maps(session_id)
     return MapResponse(
         revision=record.revision,
@@ -79,6 +120,7 @@ def get_map(session_id: str, services: ServicesDep) -> MapResponse:
 def get_transfer(
     session_id: str,
     services: ServicesDep,
+    user: CurrentUser,
     function: TransferFunction = "uv",
     vertices: Annotated[
         str | None, Query(description="for function=indicator: comma-separated source file ids")
@@ -89,6 +131,7 @@ def get_transfer(
     Headers: ``X-Shape: n,d`` and ``X-Revision``. ``uv``: the source's texture coordinates (or generated
     cylindrical ones); ``xyz``: source coordinates scaled to [0, 1] per axis; ``indicator``: 1 on
     ``vertices``."""
+    session_for(services, user, session_id, "read")
     values, revision = services.sessions.transfer(session_id, function, _parse_ids(vertices))
     headers = {"X-Shape": f"{values.shape[0]},{values.shape[1]}", "X-Revision": str(revision)}
     return Response(values.astype("<f4").tobytes(), media_type="application/octet-stream", headers=headers)
@@ -100,12 +143,12 @@ def get_transfer(
     response_model=JobInfoModel,
     responses={**QUOTA_ERRORS, **JOB_ERRORS},
 )
-def refine(session_id: str, body: RefineRequest, services: ServicesDep, user: MaybeUser) -> JobInfoModel:
-    """Queue pointwise maps both ways for the session's curves as they are now. The finished job links
-    ``map_target_to_source.txt`` (line j: source vertex for target vertex j, file ids), the other direction,
-    the same maps as ``.npy``, both functional maps and a textured target OBJ. 429 at the user's
-    concurrent-jobs quota, 413 when their stored bytes are at the byte quota."""
-    record = services.sessions.record(session_id)
+def refine(session_id: str, body: RefineRequest, services: ServicesDep, user: CurrentUser) -> JobInfoModel:
+    """Queue pointwise maps both ways for the session's curves as they are now (a job of yours; reading the
+    session is enough). The finished job links ``map_target_to_source.txt`` (line j: source vertex for target
+    vertex j, file ids), the other direction, the same maps as ``.npy``, both functional maps and a textured
+    target OBJ. 429 at your concurrent-jobs quota, 413 when your stored bytes are at the byte quota."""
+    record = session_for(services, user, session_id, "read")
     plugin = require_plugin("converter", body.converter)
     parsed = plugin.parse_params(body.params)
     size = plugin.basis_size(parsed)
@@ -123,9 +166,17 @@ def refine(session_id: str, body: RefineRequest, services: ServicesDep, user: Ma
         "params": params,
     }
     with services.quotas.admit(user, "jobs") as charge:
-        info = services.queue.submit("refine", kwargs)
+        info = services.queue.submit("refine", kwargs, owner=user.name)
         charge(info.id)
+    services.records.add_job(session_id, info.id)
     return job_model(info)
+
+
+def _discard_job(services: Services, job_id: str) -> None:
+    """Cancel the job if it still runs and delete its result files."""
+    with contextlib.suppress(CurvefmError):  # it ended already, or the queue forgot it
+        services.queue.cancel(job_id)
+    shutil.rmtree(results_dir(services, job_id), ignore_errors=True)
 
 
 def _parse_ids(text: str | None) -> list[int] | None:

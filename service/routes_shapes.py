@@ -1,4 +1,5 @@
-"""``/shapes``: upload, list and fetch meshes; request bases."""
+"""``/shapes``: upload, list and fetch meshes; request and delete bases; delete shapes. Shapes are a library
+every user sees; the uploaders (and admins) may delete them."""
 
 from __future__ import annotations
 
@@ -14,14 +15,15 @@ from fastapi import APIRouter, File, Form, Response, UploadFile
 
 from curvefm.errors import InvalidInput
 from curvefm.geometry import SUPPORTED_FORMATS, Mesh, load_mesh, texture_coordinates
-from curvefm.service.auth import MaybeUser
+from curvefm.service.auth import AUTHENTICATED, CurrentUser
 from curvefm.service.deps import JOB_ERRORS, Services, ServicesDep, job_model, submit_basis
 from curvefm.service.errors import error_responses, require_plugin
 from curvefm.service.models import BasisInfo, BasisRequest, JobInfoModel, ShapeInfo
+from curvefm.service.permissions import check_shape_manager, check_unused
 from curvefm.service.quotas import stored_bytes
 from curvefm.spectral import check_k
 
-router = APIRouter(tags=["shapes"])
+router = APIRouter(tags=["shapes"], dependencies=AUTHENTICATED, responses=error_responses(401, 403))
 ERRORS = error_responses(400, 404, 409, 413, 422)
 QUOTA_ERRORS = error_responses(400, 404, 409, 413, 422, 429)
 COPY_CHUNK = 1 << 20
@@ -33,12 +35,12 @@ def upload_shape(
     response: Response,
     file: Annotated[UploadFile, File(description=f"a mesh file: {', '.join(SUPPORTED_FORMATS)}")],
     services: ServicesDep,
-    user: MaybeUser,
+    user: CurrentUser,
     name: Annotated[str | None, Form(description="display name (default: the file name without suffix)")] = None,
 ) -> ShapeInfo:
     """Validate and store a mesh. Its id is the content hash, so uploading the same mesh again returns the
-    existing shape (200 instead of 201). A rejected upload stores nothing. A new shape counts towards its
-    uploader's byte quota (413 when over it)."""
+    existing shape (200 instead of 201), with you added to its uploaders. A rejected upload stores nothing. A new
+    shape counts towards its first uploader's byte quota (413 when over it)."""
     filename = file.filename or ""
     suffix = Path(filename).suffix.lower()
     if suffix not in SUPPORTED_FORMATS:
@@ -56,6 +58,8 @@ def upload_shape(
     else:
         with services.quotas.admit(user, "shapes", stored_bytes(mesh)) as charge:
             charge(services.store.put_mesh(mesh))
+    if services.store.add_uploader(mesh.content_hash, user.name):
+        services.audit.record(user.name, "shape.upload", mesh.content_hash)
     return shape_info(services, mesh.content_hash)
 
 
@@ -97,7 +101,7 @@ def get_shape_mesh(shape_id: str, services: ServicesDep, format: Literal["binary
     response_model=JobInfoModel,
     responses={**QUOTA_ERRORS, **JOB_ERRORS},
 )
-def request_basis(shape_id: str, body: BasisRequest, services: ServicesDep, user: MaybeUser) -> JobInfoModel:
+def request_basis(shape_id: str, body: BasisRequest, services: ServicesDep, user: CurrentUser) -> JobInfoModel:
     """Queue the basis computation. While the same request (shape, plugin, k, parameters) is queued or
     running, the same job is returned; if the basis already exists, the job finishes at once. 429 at the
     user's concurrent-jobs quota."""
@@ -106,9 +110,30 @@ def request_basis(shape_id: str, body: BasisRequest, services: ServicesDep, user
     check_k(body.k, mesh.n_vertices, mesh.name or shape_id)
     services.sessions.limits.check("max_k", body.k, f"k = {body.k} basis functions")
     with services.quotas.admit(user, "jobs") as charge:
-        info = submit_basis(services, shape_id, body.k, body.plugin, canonical)
+        info = submit_basis(services, shape_id, body.k, body.plugin, canonical, user.name)
         charge(info.id)
     return job_model(info)
+
+
+@router.delete("/shapes/{shape_id}", status_code=204, responses=ERRORS)
+def delete_shape(shape_id: str, services: ServicesDep, user: CurrentUser) -> Response:
+    """Delete a shape with its bases (an uploader or an admin); 409 while a session uses it, naming them."""
+    check_shape_manager(services, user, shape_id, "delete it")
+    check_unused(services, user, shape_id, "delete it")
+    services.store.delete_mesh(shape_id)
+    services.audit.record(user.name, "shape.delete", shape_id)
+    return Response(status_code=204)
+
+
+@router.delete("/shapes/{shape_id}/bases", response_model=ShapeInfo, responses=ERRORS)
+def delete_bases(shape_id: str, services: ServicesDep, user: CurrentUser) -> ShapeInfo:
+    """Delete every stored basis of a shape (an uploader or an admin), e.g. to free disk; 409 while a session
+    uses the shape (its solver is rebuilt from them). Requesting a basis computes it again."""
+    check_shape_manager(services, user, shape_id, "delete its bases")
+    check_unused(services, user, shape_id, "delete its bases")
+    removed = services.store.delete_bases(shape_id)
+    services.audit.record(user.name, "shape.bases.delete", shape_id, {"bases": len(removed)})
+    return shape_info(services, shape_id)
 
 
 def shape_info(services: Services, shape_id: str) -> ShapeInfo:
@@ -120,6 +145,7 @@ def shape_info(services: Services, shape_id: str) -> ShapeInfo:
         n_faces=len(mesh.faces),
         n_file_vertices=mesh.n_file_vertices,
         has_uv=mesh.uv is not None,
+        uploaders=services.store.uploaders(shape_id),
         report=mesh.report.as_dict(),
         bases=[BasisInfo(**b) for b in services.store.stored_bases(shape_id)],
     )

@@ -25,6 +25,7 @@ LIMITS = ("max_upload_bytes", "max_body_bytes", *SESSION_LIMITS)
 LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
 ANY_HOST = "*"
 DAY_S = 24 * 3600
+DEFAULT_LOGIN_TTL_S = 7 * 24 * 3600
 
 
 @dataclass(frozen=True)
@@ -58,6 +59,8 @@ class Settings:
     """Finished job records and their result files are deleted this long after the job ended."""
     expiry_interval_s: float = 600.0
     """How often the API looks for expired jobs and result files."""
+    login_ttl_s: float = DEFAULT_LOGIN_TTL_S
+    """How long a login cookie of the web page stays valid (a token rotation or removal ends it sooner)."""
 
     @classmethod
     def from_env(cls, bind_host: str = LOOPBACK_NAMES[1], **overrides) -> Settings:
@@ -130,6 +133,7 @@ ENV: dict[str, tuple[str, Callable[[str], object]]] = {
     "rate_burst": ("CURVEFM_RATE_BURST", _non_negative(int)),
     "job_ttl_s": ("CURVEFM_JOB_TTL", _non_negative(float)),
     "expiry_interval_s": ("CURVEFM_EXPIRY_INTERVAL", _non_negative(float)),
+    "login_ttl_s": ("CURVEFM_LOGIN_TTL", _non_negative(float)),
 }
 """Setting -> (environment variable, parser), for the settings that are not request limits (:data:`LIMITS`)."""
 

@@ -88,12 +88,37 @@ def redis_prefix(redis_url: str):
                 connection.srem(registry, member)
 
 
-class Api:
-    """A running API process and an HTTP client for it."""
+TEST_USER = "tester"
+"""The user every API fixture's client acts as (not an admin): made on the server's data directory before it starts."""
 
-    def __init__(self, process: subprocess.Popen, url: str, log: Path):
-        self.process, self.url, self.log = process, url, log
-        self.client = httpx.Client(base_url=url, timeout=120)
+
+def bearer(token: str) -> dict[str, str]:
+    return {"Authorization": f"Bearer {token}"}
+
+
+def add_user(data_dir: Path, name: str, admin: bool = False) -> str:
+    """Make a user on a data directory (the server sees it at once); a user of an earlier server on it gets a new
+    token. Returns the token."""
+    from curvefm.access import UserStore
+    from curvefm.errors import Conflict
+
+    users = UserStore(data_dir)
+    try:
+        return users.add(name, admin=admin)
+    except Conflict:
+        return users.rotate(name)
+
+
+class Api:
+    """A running API process and an HTTP client for it, authenticated as :data:`TEST_USER`."""
+
+    def __init__(self, process: subprocess.Popen, url: str, log: Path, data_dir: Path, token: str | None):
+        self.process, self.url, self.log, self.data_dir, self.token = process, url, log, data_dir, token
+        self.client = httpx.Client(base_url=url, timeout=120, headers=bearer(token) if token else None)
+
+    def client_for(self, name: str, admin: bool = False) -> httpx.Client:
+        """A client of another user, made now."""
+        return httpx.Client(base_url=self.url, timeout=120, headers=bearer(add_user(self.data_dir, name, admin)))
 
     def upload(self, path: Path) -> str:
         with open(path, "rb") as f:
@@ -147,16 +172,19 @@ class Processes:
         return process
 
     def api(
-        self, data_dir: Path, redis_url: str | None = None, env: dict[str, str] | None = None, args=()
+        self, data_dir: Path, redis_url: str | None = None, env: dict[str, str] | None = None, args=(), user=TEST_USER
     ) -> Api:
+        """An API process on ``data_dir``, with a client of ``user`` (None: no user is made, so the server makes
+        its local admin and prints the login URL)."""
         port = free_port()
         args = [*API_COMMAND, "--host", "127.0.0.1", "--port", str(port), "--data", str(data_dir), *args]
         if redis_url:
             args += ["--redis-url", redis_url]
         name = f"api-{port}"
+        token = add_user(data_dir, user) if user else None
         # tests drive a server far faster than a person does: no rate limit unless the test sets one
         process = self.start(args, name, {"CURVEFM_RATE_LIMIT": "0", **(env or {})})
-        api = Api(process, f"http://127.0.0.1:{port}", self.folder / f"{name}.log")
+        api = Api(process, f"http://127.0.0.1:{port}", self.folder / f"{name}.log", data_dir, token)
         wait_until_healthy(api)
         return api
 

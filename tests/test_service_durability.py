@@ -7,14 +7,15 @@ from concurrent.futures import ThreadPoolExecutor
 
 import httpx
 import numpy as np
+from conftest import bearer
 
 K = 30
 ACKNOWLEDGED_BEFORE_KILL = 12
 
 
-def add_curves_until_refused(url: str, session_id: str, acknowledged: list[dict], enough: threading.Event) -> None:
+def add_curves_until_refused(api, session_id: str, acknowledged: list[dict], enough: threading.Event) -> None:
     rng = np.random.default_rng(0)
-    with httpx.Client(base_url=url, timeout=30) as client:
+    with httpx.Client(base_url=api.url, timeout=30, headers=bearer(api.token)) as client:
         while True:
             a, b = (int(v) for v in rng.choice(4000, 2, replace=False))
             try:
@@ -33,7 +34,7 @@ def test_acknowledged_curves_survive_kill_9(processes, tmp_path):
     acknowledged: list[dict] = []
     enough = threading.Event()
     with ThreadPoolExecutor(max_workers=1) as pool:
-        adder = pool.submit(add_curves_until_refused, api.url, session_id, acknowledged, enough)
+        adder = pool.submit(add_curves_until_refused, api, session_id, acknowledged, enough)
         while not enough.wait(timeout=0.1):
             if adder.done():
                 adder.result()  # raises what stopped the adder
