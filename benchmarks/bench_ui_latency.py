@@ -87,9 +87,9 @@ def percentile(values: list[float], q: float) -> float:
     return round(float(np.percentile(values, q)), 1)
 
 
-def measure_latency(browser, url: str, session_id: str, n_vertices: int, curves: int) -> dict:
+def measure_latency(browser, url: str, token: str, session_id: str, n_vertices: int, curves: int) -> dict:
     page = browser.new_page(viewport=VIEWPORT)
-    open_session(page, url, session_id, timeout_ms=120_000)
+    open_session(page, url, session_id, token, timeout_ms=120_000)
     pairs = endpoint_pairs(pickable_vertices(page), curves)
     samples = [click_curve(page, list(pair)) for pair in pairs]
     page.close()
@@ -109,11 +109,11 @@ def measure_latency(browser, url: str, session_id: str, n_vertices: int, curves:
     }
 
 
-def measure_responsiveness(browser, url: str, session_id: str, n_vertices: int, curves: int) -> dict:
+def measure_responsiveness(browser, url: str, token: str, session_id: str, n_vertices: int, curves: int) -> dict:
     page = browser.new_page(viewport=VIEWPORT)
     page.add_init_script(MONITOR_JS)
     started = time.perf_counter()
-    open_session(page, url, session_id, timeout_ms=180_000)
+    open_session(page, url, session_id, token, timeout_ms=180_000)
     load_s = time.perf_counter() - started
     loading = page.evaluate("({ longest: Math.max(0, ...curvefmMonitor.longTasks), maxGap: curvefmMonitor.maxGap })")
     pairs = endpoint_pairs(pickable_vertices(page), curves)  # the test hook's raycasts are not the page's work
@@ -147,17 +147,20 @@ def main() -> None:
         sys.exit(f"benchmark needs Chromium at {CHROMIUM} (set CURVEFM_CHROMIUM)")
     from playwright.sync_api import sync_playwright
 
-    server, url = start_server(Path(args.data))
+    server, url, headers = start_server(Path(args.data))
+    token = headers["Authorization"].split()[-1]
     try:
-        client = httpx.Client(base_url=url, timeout=600)
+        client = httpx.Client(base_url=url, timeout=600, headers=headers)
         result = {"machine": {**machine(), "load_average_1min": os.getloadavg()[0]}, "renderer": "SwiftShader"}
         with sync_playwright() as playwright:
             browser = launch(playwright)
             session_id, n = prepare_session(client, LATENCY_PAIR)
-            result["latency"] = measure_latency(browser, url, session_id, n, args.curves)
+            result["latency"] = measure_latency(browser, url, token, session_id, n, args.curves)
             if not args.no_large:
                 session_id, n = prepare_session(client, LARGE_PAIR)
-                result["responsiveness"] = measure_responsiveness(browser, url, session_id, n, args.large_curves)
+                result["responsiveness"] = measure_responsiveness(
+                    browser, url, token, session_id, n, args.large_curves
+                )
             browser.close()
         print(json.dumps(result, indent=1))
     finally:

@@ -70,7 +70,7 @@ def page(browser, demo):
     page = context.new_page()
     errors = []
     page.on("pageerror", lambda error: errors.append(str(error)))
-    open_session(page, demo.url, DEMO_SESSION)
+    open_session(page, demo.url, DEMO_SESSION, token=demo.token)
     yield page
     context.close()
     assert not errors, f"uncaught errors in the page: {errors}"

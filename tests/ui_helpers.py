@@ -47,17 +47,19 @@ def launch(playwright):
     return playwright.chromium.launch(executable_path=str(CHROMIUM), headless=True, args=["--no-sandbox"])
 
 
-def open_session(page, url: str, session_id: str, timeout_ms: float = 60_000) -> None:
-    """Load the UI on a session and wait until its first texture is drawn; otherwise fail with what the page
-    says (its banner and loading message name the cause, e.g. three.js not installed)."""
+def open_session(page, url: str, session_id: str, token: str | None = None, timeout_ms: float = 60_000) -> None:
+    """Load the UI on a session (logging in with ``token`` as the login URL does, unless the page's browser
+    context has the login cookie already) and wait until its first texture is drawn; otherwise fail with what the
+    page says (its banners and loading message name the cause, e.g. three.js not installed, or no login)."""
     from playwright.sync_api import TimeoutError as PlaywrightTimeout
 
-    page.goto(f"{url}/?session={session_id}")
+    page.goto(f"{url}/?session={session_id}" + (f"&token={token}" if token else ""))
     try:
         # predicates are functions: a bare expression is eval()ed in the page, which its CSP forbids
         page.wait_for_function("() => window.curvefm && window.curvefm.ready", timeout=timeout_ms)
     except PlaywrightTimeout:
-        said = page.evaluate("[...document.querySelectorAll('#banner, #loading, .toast')].map((e) => e.innerText)")
+        shown = "#banner, #login-needed, #loading, .toast"
+        said = page.evaluate(f"[...document.querySelectorAll('{shown}')].map((e) => e.hidden ? '' : e.innerText)")
         raise AssertionError(f"the UI did not show session {session_id}: {said}") from None
 
 

@@ -1,10 +1,12 @@
 // The curvefm HTTP API: JSON in and out, binary payloads as ArrayBuffer, every failure as an ApiError.
 // Vertex ids in JSON are file ids; binary payloads (mesh, transfer) follow internal vertex order. Whether the
-// service can be reached goes to the store (state.connected) with every request.
-import { setConnected } from "./store.js";
+// service can be reached goes to the store (state.connected) with every request, and a refused login
+// (401) too (state.loggedOut). Requests carry the login cookie; the browser adds it.
+import { loggedOut, setConnected } from "./store.js";
 
 export class ApiError extends Error {
-  /** kind: the service's error kind (invalid, not_found, conflict, too_large) or "network". */
+  /** kind: the service's error kind (invalid, unauthenticated, forbidden, not_found, conflict, too_large) or
+   * "network". */
   constructor(message, { status = 0, kind = "network" } = {}) {
     super(message);
     this.status = status;
@@ -12,8 +14,8 @@ export class ApiError extends Error {
   }
 }
 
-async function request(method, path, { json, body, as = "json" } = {}) {
-  const init = { method, headers: {} };
+async function request(method, path, { json, body, as = "json", headers = {} } = {}) {
+  const init = { method, headers: { ...headers } };
   if (json !== undefined) {
     init.body = JSON.stringify(json);
     init.headers["Content-Type"] = "application/json";
@@ -28,7 +30,9 @@ async function request(method, path, { json, body, as = "json" } = {}) {
     throw new ApiError(`cannot reach the service (${method} ${path}): ${error.message}`);
   }
   setConnected(true);
+  if (response.status === 401) loggedOut();
   if (!response.ok) throw await errorFrom(response);
+  if (as === "none") return null;
   if (as === "json") return response.json();
   if (as === "text") return response.text();
   return { buffer: await response.arrayBuffer(), headers: response.headers };
@@ -52,6 +56,10 @@ const enc = encodeURIComponent;
 
 export const api = {
   health: () => request("GET", "/health"),
+  /** Trade a token (the login URL's) for the login cookie; resolves to the user. */
+  login: (token) => request("POST", "/auth/login", { headers: { Authorization: `Bearer ${token}` } }),
+  logout: () => request("POST", "/auth/logout", { as: "none" }),
+  me: () => request("GET", "/auth/me"),
   plugins: () => request("GET", "/plugins"),
 
   shapes: () => request("GET", "/shapes"),
@@ -67,6 +75,7 @@ export const api = {
   sessions: () => request("GET", "/sessions"),
   session: (id) => request("GET", `/sessions/${enc(id)}`),
   createSession: (body) => request("POST", "/sessions", { json: body }),
+  shareSession: (id, sharing) => request("PATCH", `/sessions/${enc(id)}`, { json: { sharing } }),
   addCurve: (id, spec) => request("POST", `/sessions/${enc(id)}/curves`, { json: spec }),
   replaceCurve: (id, curveId, spec) =>
     request("PUT", `/sessions/${enc(id)}/curves/${enc(curveId)}`, { json: spec }),

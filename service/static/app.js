@@ -16,9 +16,10 @@ import {
   showCurveTubes,
   useTextureImage,
 } from "./controllers/display.js";
+import { logOut, watchLogin } from "./controllers/login.js";
 import { openPair, upload } from "./controllers/pair.js";
 import { cancelRefine, downloadLiveMap, refine } from "./controllers/refine.js";
-import { chooseSession } from "./controllers/session.js";
+import { chooseSession, shareSession } from "./controllers/session.js";
 import { start } from "./controllers/startup.js";
 import { chooseTarget, setTexture, state } from "./store.js";
 import { checkerboardTexture } from "./views/colors.js";
@@ -31,6 +32,7 @@ followCameras();
 installTestHooks();
 bindControls();
 watchConnection();
+watchLogin();
 start();
 
 function bindControls() {
@@ -41,11 +43,13 @@ function bindControls() {
   // the shapes, and clicks on them
   for (const side of SIDES) viewports[side].onPick((vertex, event) => pickVertex(side, vertex, event));
   window.addEventListener("keydown", pressKey);
+  on("logout-button", "click", logOut);
   // Shapes & session
   on("open-pair", "click", openPair);
   on("upload-input", "change", (event) => upload(event.target));
   on("target-select", "change", chooseTarget);
   on("session-select", "change", (event) => chooseSession(event.target.value));
+  on("sharing-select", "change", (event) => shareSession(event.target.value));
   // Curves
   on("tracer-select", "change", () => showParameters("tracer"));
   on("curve-list", "click", clickCurveList);

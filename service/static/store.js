@@ -1,5 +1,5 @@
 // The UI's state: the one mutable object of the page. Any module may read `state`; only the functions below
-// change it. subscribe(key, listener) hears of the changes that are announced (the connection).
+// change it. subscribe(key, listener) hears of the changes that are announced (the connection, the login).
 
 const noClicks = () => ({ points: { source: [], target: [] }, closed: { source: false, target: false } });
 
@@ -25,6 +25,8 @@ export const state = {
   targetChosen: false, // the user chose the target shape (the lists no longer pick one)
   transferTicket: 0, // counts requests for the carried function: only the newest one's answer is shown
   connected: true, // the last request reached the service
+  user: null, // GET /auth/me: { name, admin } once logged in
+  loggedOut: false, // the service refused the page's credentials (none, expired, or the token changed)
   stats: { samples: [], last: null }, // click-to-texture timings (window.curvefmStats)
 };
 
@@ -165,6 +167,37 @@ export function nextTransferTicket() {
 // -- jobs, the connection, timings ---------------------------------------------------------------------------
 export function setRefineJob(jobId) {
   state.refineJob = jobId;
+}
+
+// -- the login ----------------------------------------------------------------------------------------------
+export function loggedIn(user) {
+  state.user = user;
+  state.loggedOut = false;
+  announce("login");
+}
+
+/** The service answered 401: the page has no valid login (any more). */
+export function loggedOut() {
+  if (state.loggedOut) return;
+  state.user = null;
+  state.loggedOut = true;
+  announce("login");
+}
+
+/** The user may share and delete the open session: its owner, or an admin. */
+export function mayManage() {
+  const { user, session } = state;
+  return Boolean(user && session && (user.admin || session.owner === user.name));
+}
+
+/** The user may change the open session's curves. */
+export function mayEdit() {
+  return mayManage() || state.session?.sharing === "edit";
+}
+
+export function sessionShared(record) {
+  state.session.sharing = record.sharing;
+  state.session.revision = record.revision;
 }
 
 export function setConnected(connected) {

@@ -1,13 +1,22 @@
-// Opening a session: its record and both shapes are loaded, then shown with the carried function drawn.
+// Opening a session: its record and both shapes are loaded, then shown with the carried function drawn; and
+// sharing it with the lab.
 import { api } from "../api.js";
 import { diagonal, xyzValues } from "../functions.js";
 import { decodeMesh } from "../mesh.js";
-import { sessionOpened, setReady, state } from "../store.js";
+import { sessionOpened, sessionShared, setReady, state } from "../store.js";
 import { showCurves, showPending } from "../views/curves.js";
 import { $ } from "../views/dom.js";
 import { listJobFiles } from "../views/downloads.js";
-import { report } from "../views/messages.js";
-import { openPairPanel, showLists, showLoading, showMapChoice, showSessionTitle, showStatus } from "../views/page.js";
+import { report, toast } from "../views/messages.js";
+import {
+  openPairPanel,
+  showLists,
+  showLoading,
+  showMapChoice,
+  showSessionTitle,
+  showSharing,
+  showStatus,
+} from "../views/page.js";
 import { orientViews, paint, showShapes, showSource, SIDES, viewports } from "../views/viewports.js";
 import { carriedRows } from "./feedback.js";
 
@@ -41,6 +50,7 @@ export async function openSession(id) {
     showLoading(null);
     setReady(true);
     showSessionTitle();
+    showSharing();
     showStatus();
   } catch (error) {
     report(error, `Session ${id} could not be opened`);
@@ -55,6 +65,20 @@ async function loadShape(id, withFunctions) {
   const shape = { info, mesh, diagonal: diagonal(mesh.vertices) };
   if (withFunctions) Object.assign(shape, { uv: mesh.texcoords, xyz: xyzValues(mesh.vertices) });
   return shape;
+}
+
+/** The sharing select's choice: private, read or edit (the owner's, or an admin's). */
+export async function shareSession(sharing) {
+  try {
+    sessionShared(await api.shareSession(state.session.id, sharing));
+    const now = sharing === "private" ? "private" : `shared: every user may ${sharing} it`;
+    toast(`Session ${state.session.name || state.session.id} is now ${now}.`);
+    await refreshLists();
+  } catch (error) {
+    report(error, "The sharing could not be changed");
+  }
+  showSharing();
+  showStatus();
 }
 
 /** Fetch the shapes and sessions and show them in the lists; resolves to { shapes, sessions }. */

@@ -1,13 +1,18 @@
-// The page's start: the plugins, the lists, then the session named in the URL, else the newest one, else wait
-// for one (the demo's, still computing its bases) unless the user opens a pair of their own first.
+// The page's start: the login, the plugins, the lists, then the session named in the URL, else the newest one,
+// else wait for one (the demo's, still computing its bases) unless the user opens a pair of their own first.
 import { api, sleep } from "../api.js";
 import { setPlugins, state } from "../store.js";
 import { showPlugins } from "../views/forms.js";
 import { report } from "../views/messages.js";
 import { openPairPanel, showLoading } from "../views/page.js";
+import { logIn } from "./login.js";
 import { openSession, refreshLists } from "./session.js";
 
 export async function start() {
+  if (!(await logIn())) {
+    showLoading("Not logged in: open the login URL that `curvefm serve` printed.");
+    return;
+  }
   try {
     setPlugins(await api.plugins());
     showPlugins("tracer");

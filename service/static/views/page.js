@@ -1,6 +1,6 @@
 // The page around the viewports, from the store: the top bar (title, status line), the loading message, the
 // session and shape lists, and the state of the panels' controls.
-import { state } from "../store.js";
+import { mayEdit, mayManage, state } from "../store.js";
 import { $ } from "./dom.js";
 
 /** The message over the viewports (text), or none (null). */
@@ -36,9 +36,14 @@ export function showLists(shapes, sessions) {
   const sessionSelect = $("session-select");
   sessionSelect.replaceChildren(
     new Option("—", ""),
-    ...sessions.map((s) => new Option(`${s.name || s.id} · ${s.n_curves} curves · k=${s.k}`, s.id)),
+    ...sessions.map((s) => new Option(`${s.name || s.id} · ${s.n_curves} curves · k=${s.k}${ownedBy(s)}`, s.id)),
   );
   sessionSelect.value = state.session?.id ?? "";
+}
+
+/** " · by alice" for a session of another user. */
+function ownedBy(session) {
+  return session.owner && session.owner !== state.user?.name ? ` · by ${session.owner}` : "";
 }
 
 /** The open session in the lists and the title. */
@@ -48,7 +53,16 @@ export function showSessionTitle() {
   $("session-select").value = session.id;
   $("source-select").value = session.source;
   $("target-select").value = session.target;
-  $("session-title").textContent = `${session.name || session.id}: ${source.name} → ${target.name} · k=${session.k}`;
+  const readOnly = mayEdit() ? "" : ` · read-only (shared by ${session.owner})`;
+  $("session-title").textContent =
+    `${session.name || session.id}: ${source.name} → ${target.name} · k=${session.k}${readOnly}`;
+}
+
+/** The sharing select: the open session's sharing, changeable by its owner or an admin. */
+export function showSharing() {
+  const select = $("sharing-select");
+  select.value = state.session?.sharing ?? "private";
+  select.disabled = !mayManage();
 }
 
 export function openPairPanel() {
