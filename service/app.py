@@ -13,7 +13,7 @@ from starlette.exceptions import HTTPException
 from curvefm.access import UserStore
 from curvefm.errors import LimitExceeded
 from curvefm.service import routes_audit, routes_auth, routes_jobs, routes_sessions, routes_shapes
-from curvefm.service.auth import AUTHENTICATED, LOCAL_ADMIN
+from curvefm.service.auth import AUTHENTICATED, LOCAL_ADMIN, CredentialsFirst
 from curvefm.service.deps import start_services
 from curvefm.service.errors import error_response, error_responses, install_error_handlers
 from curvefm.service.headers import SecurityHeaders, ui_csp
@@ -112,8 +112,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     install_error_handlers(app)
     install_hints(app)
-    # the last added runs first: headers on every answer, then the Host check, the rate limit, the body size
+    # the last added runs first: headers on every answer, then the Host check, the rate limit, credentials
+    # (of writes), the body size
     app.add_middleware(BodySizeLimit, settings=settings)
+    app.add_middleware(CredentialsFirst)  # before the body is read, after the rate limit
     if settings.rate_limit:
         app.add_middleware(RateLimit, settings=settings, buckets=buckets, exempt=is_unlimited)
     app.add_middleware(HostCheck, allowed=settings.allowed_hosts)

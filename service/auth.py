@@ -1,5 +1,5 @@
 """Who is asking: :func:`current_user`, the dependency of every route but ``GET /health`` (the UI's static files
-are not routes).
+are not routes), checked for state-changing requests before their body is read (:class:`CredentialsFirst`).
 
 Credentials, the first found wins:
 
@@ -21,7 +21,8 @@ from fastapi import Depends, Request, Response
 from fastapi.security import HTTPBearer
 
 from curvefm.access import User
-from curvefm.errors import Forbidden, Unauthenticated
+from curvefm.errors import CurvefmError, Forbidden, Unauthenticated
+from curvefm.service.errors import error_response, internal_error_response, status_of
 
 SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
 DEFAULT_PORTS = {"http": 80, "https": 443}
@@ -49,6 +50,25 @@ def current_user(request: Request) -> User:
 CurrentUser = Annotated[User, Depends(current_user)]
 AUTHENTICATED = [Depends(current_user), Depends(BEARER)]
 """The dependencies of a router whose routes all need a user."""
+
+
+class CredentialsFirst:
+    """Checks the credentials of a state-changing request at its headers, before its body is read: the routes'
+    dependencies run only after FastAPI has parsed the body, and an anonymous upload would be spooled first."""
+
+    def __init__(self, app):
+        self.app = app
+
+    async def __call__(self, scope, receive, send) -> None:
+        if scope["type"] == "http" and scope["method"] not in SAFE_METHODS:
+            request = Request(scope)
+            try:
+                current_user(request)  # remembered in the request's state for the route
+            except CurvefmError as exc:
+                refusal = error_response(exc) if status_of(exc) < 500 else internal_error_response(request, exc)
+                await refusal(scope, receive, send)
+                return
+        await self.app(scope, receive, send)
 
 
 def bearer_user(request: Request) -> User:

@@ -301,3 +301,21 @@ def private_redis(tmp_path: Path):
     server.start()
     yield server
     server.stop()
+
+
+@pytest.fixture(scope="module")
+def browser():
+    """Headless Chromium (Playwright), one per test module."""
+    from ui_helpers import CHROMIUM, launch
+
+    if not CHROMIUM.is_file():
+        unavailable(
+            f"browser tests need Chromium at {CHROMIUM} (scripts/setup.sh installs Debian's 'chromium'; "
+            "CURVEFM_CHROMIUM points elsewhere)"
+        )
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as playwright:
+        browser = launch(playwright)
+        yield browser
+        browser.close()

@@ -39,3 +39,11 @@ def stretched_ellipsoid_pair(k=40):
     M = ellipsoid()
     N = ellipsoid(radii=(1.1, 0.6, 0.55))
     return M, basis_of(M, k), N, basis_of(N, k)
+
+
+def off_bytes(mesh) -> bytes:
+    """The mesh as the text of an OFF file, for uploads."""
+    lines = ["OFF", f"{len(mesh.vertices)} {len(mesh.faces)} 0"]
+    lines += [" ".join(f"{x:.9g}" for x in vertex) for vertex in mesh.vertices]
+    lines += ["3 " + " ".join(str(i) for i in face) for face in mesh.faces]
+    return ("\n".join(lines) + "\n").encode()

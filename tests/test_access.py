@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from curvefm.access import TOKEN_PREFIX, AuditLog, User, UserStore
+from curvefm.access import TOKEN_PREFIX, AuditLog, User, UserStore, signing_key
 from curvefm.access import audit as audit_module
 from curvefm.errors import CurvefmError
 
@@ -123,6 +123,39 @@ def test_changes_by_another_process_take_effect_at_once(tmp_path):
                           text=True, check=True)
     assert users.authenticate(token) is None
     assert users.authenticate(done.stdout.strip()).name == "bob"
+
+
+def test_a_token_binding_names_the_current_token_only(tmp_path):
+    users = UserStore(tmp_path)
+    token = users.add("alice")
+    before = users.token_binding("alice")
+    assert before and token not in before and users.get("alice").name == "alice"
+    users.rotate("alice")
+    assert users.token_binding("alice") not in (None, before)
+    users.remove("alice")
+    assert users.token_binding("alice") is None and users.get("alice") is None
+
+
+# -- the signing key -----------------------------------------------------------------------------------------
+def test_the_signing_key_is_made_once_private_and_shared_by_processes(tmp_path):
+    script = """
+        from curvefm.access import signing_key
+        #GO
+        print(signing_key(data).hex())
+    """
+    keys = {output.strip() for output in run_together(tmp_path, script, "a", "b", "c")}
+    assert len(keys) == 1 and signing_key(tmp_path).hex() in keys
+    path = tmp_path / "access" / "signing.key"
+    assert path.stat().st_mode & 0o777 == 0o600 and len(path.read_bytes()) == 32
+    assert [p.name for p in path.parent.iterdir() if p.name.startswith(".signing")] == []  # no leftovers
+
+
+def test_a_damaged_signing_key_is_an_internal_error(tmp_path):
+    signing_key(tmp_path)
+    (tmp_path / "access" / "signing.key").write_bytes(b"short")
+    with pytest.raises(CurvefmError) as error:
+        signing_key(tmp_path)
+    assert error.value.code == "internal" and str(tmp_path) not in error.value.message
 
 
 # -- audit log -----------------------------------------------------------------------------------------------

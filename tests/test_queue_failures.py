@@ -1,5 +1,6 @@
 """A failed job says why as data, a kind and one readable line, alike in the embedded executor and on RQ with a
-real worker process; no traceback text is parsed, and none is part of what a job reports."""
+real worker process; no traceback text is parsed, and none is part of what a job reports. Both queues keep a
+job's owner."""
 
 from __future__ import annotations
 
@@ -46,6 +47,15 @@ def test_any_other_exception_is_an_internal_failure_in_one_line(queue, tmp_path)
     assert info.error.kind == "internal"
     assert info.error.message.startswith("TypeError: ") and "'colour'" in info.error.message
     assert "\n" not in info.error.message and "Traceback" not in info.error.message
+
+
+def test_a_job_keeps_its_owner_and_a_joined_job_its_first_owner(queue, tmp_path):
+    kwargs = {"data_dir": str(tmp_path), "mesh_id": "feedbeef", "k": 20}
+    first = queue.submit("basis", kwargs, dedupe_key="owned", owner="alice")
+    joined = queue.submit("basis", kwargs, dedupe_key="owned", owner="bob")
+    assert first.owner == "alice" and queue.get(first.id).owner == "alice"
+    assert joined.owner == ("alice" if joined.id == first.id else "bob")  # joined alice's job, or it had ended
+    assert queue.submit("basis", kwargs).owner is None
 
 
 def test_every_job_kind_has_a_function():

@@ -22,6 +22,7 @@ def wait_for_demo(api, timeout: float = 180) -> dict:
 def test_demo_prepares_shapes_bases_and_a_session(processes, tmp_path):
     api = processes.api(tmp_path / "data", args=("--demo",))
     session = wait_for_demo(api)
+    assert (session["owner"], session["sharing"]) == ("admin", "edit")  # the test's user is not an admin
     log = api.log.read_text()
     assert "demo: basis of demo-animal" in log and "%" in log  # progress was shown
     for shape in (session["source"], session["target"]):

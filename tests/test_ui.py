@@ -13,16 +13,14 @@ from pathlib import Path
 import httpx
 import numpy as np
 import pytest
-from conftest import REPO, unavailable
+from conftest import REPO
 from fastapi import FastAPI
 from ui_helpers import (
-    CHROMIUM,
     VIEWPORT,
     canvas_pixels,
     changed_fraction,
     click_curve,
     endpoint_pairs,
-    launch,
     next_frames,
     open_session,
     pickable_vertices,
@@ -47,21 +45,6 @@ def demo(module_processes, tmp_path_factory):
             return api
         time.sleep(0.25)
     raise AssertionError(f"the demo session was not ready:\n{api.log.read_text()[-3000:]}")
-
-
-@pytest.fixture(scope="module")
-def browser():
-    if not CHROMIUM.is_file():
-        unavailable(
-            f"browser tests need Chromium at {CHROMIUM} (scripts/setup.sh installs Debian's 'chromium'; "
-            "CURVEFM_CHROMIUM points elsewhere)"
-        )
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as playwright:
-        browser = launch(playwright)
-        yield browser
-        browser.close()
 
 
 @pytest.fixture
