@@ -2,7 +2,7 @@
 server makes its local admin and prints a login URL; the page trades the URL's token for an HttpOnly,
 SameSite=Strict cookie and takes the token out of the address bar; a page of another origin cannot write with
 that cookie (403), nor can a request without an Origin; logging out, rotating the token or a forged cookie ends
-the login."""
+the login. The page shows who is logged in, and shares a session through its Sharing select."""
 
 from __future__ import annotations
 
@@ -13,9 +13,10 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 
 import httpx
 import pytest
-from conftest import free_port
+from conftest import add_user, free_port
+from lab import Lab
 from shapes import ellipsoid, off_bytes
-from ui_helpers import VIEWPORT
+from ui_helpers import VIEWPORT, open_session
 
 from curvefm.access import UserStore
 from curvefm.service.models import ErrorBody
@@ -162,3 +163,24 @@ def test_the_token_stays_out_of_the_access_log(server):
     log = server.log.read_text()
     assert log.count(server.printed_token) == 1  # the printed login URL, and nothing after it
     assert "GET /?token=[redacted]" in log
+
+
+def test_the_owner_shares_a_session_from_the_page_and_another_user_sees_it_read_only(server, browser):
+    lab = Lab(server)  # its owner is the admin the server made
+    session_id = lab.new_session(name="shared from the page")
+    owner = browser.new_context(viewport=VIEWPORT).new_page()
+    open_session(owner, server.url, session_id, token=server.client.headers["Authorization"].split()[-1])
+    assert owner.inner_text("#user-name") == "admin (admin)"
+    owner.click("#pair-panel summary")  # the Shapes & session panel is folded while a session is open
+    assert owner.is_enabled("#sharing-select") and owner.input_value("#sharing-select") == "private"
+    owner.select_option("#sharing-select", "read")
+    owner.wait_for_selector(".toast:has-text('every user may read it')")
+    assert server.client.get(f"/sessions/{session_id}").json()["sharing"] == "read"
+
+    reader = browser.new_context(viewport=VIEWPORT).new_page()
+    open_session(reader, server.url, session_id, token=add_user(server.data_dir, "bob"))
+    assert reader.inner_text("#user-name") == "bob"
+    assert "read-only (shared by admin)" in reader.inner_text("#session-title")
+    assert reader.is_disabled("#sharing-select") and reader.input_value("#sharing-select") == "read"
+    owner.context.close()
+    reader.context.close()

@@ -27,8 +27,8 @@ export async function start() {
   }
 }
 
-/** No session yet: poll until one appears, unless the user starts a pair of their own meanwhile. The shape lists
- * are rebuilt only when the service's shapes or sessions changed. */
+/** No session yet: poll until one appears, unless the user starts a pair of their own meanwhile (or logs out). The
+ * shape lists are rebuilt only when the service's shapes or sessions changed. */
 async function waitForFirstSession() {
   openPairPanel();
   showLoading(
@@ -36,7 +36,7 @@ async function waitForFirstSession() {
       "the demo of `curvefm serve --demo` opens by itself once it is ready.",
   );
   let known = "";
-  while (!state.session && !state.pairInProgress) {
+  while (!state.session && !state.pairInProgress && !state.loggedOut) {
     await sleep(1500);
     try {
       const [shapes, sessions] = await Promise.all([api.shapes(), api.sessions()]);
@@ -45,7 +45,7 @@ async function waitForFirstSession() {
       known = now;
       if (sessions.length && !state.session && !state.pairInProgress) await openSession(sessions[0].id);
     } catch (error) {
-      if (error.kind !== "network") throw error;
+      if (error.kind !== "network" && !state.loggedOut) throw error;
     }
   }
 }
