@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Sets up (scripts/setup.sh) and starts the service with its web UI on the embedded defaults: no Redis,
-# data in ~/.local/share/curvefm, two generated demo shapes with a ready session. Open http://127.0.0.1:8000
+# data in ~/.local/share/curvefm, two generated demo shapes with a ready session. On its first start on that data
+# directory the service makes an admin user and prints its login URL, http://127.0.0.1:8000/?token=...: open it.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 CURVEFM_SKIP_BROWSER=1 bash scripts/setup.sh

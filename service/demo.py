@@ -112,7 +112,8 @@ def prepare_demo(services: Services, stop: threading.Event, k: int = DEFAULT_K) 
     services.sessions.create(request, DEMO_SESSION, owner=LOCAL_ADMIN)
     for spec in demo_curves(meshes[0]):
         services.sessions.add_curve(DEMO_SESSION, spec)
-    log.info("demo session '%s' is ready: open /?session=%s", DEMO_SESSION, DEMO_SESSION)
+    log.info("demo session '%s' is ready: open /?session=%s (log in first with the URL printed at the start)",
+             DEMO_SESSION, DEMO_SESSION)
 
 
 def _wait(services: Services, job_id: str, what: str, stop: threading.Event) -> bool:
