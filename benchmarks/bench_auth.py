@@ -3,7 +3,9 @@
 * ``authenticate_us``: :meth:`UserStore.authenticate` with a valid token and with a wrong one, per call, while
   the users file is unchanged (a ``stat``, a SHA-256 and a dictionary lookup);
 * ``first_after_change_ms``: the first call after another process changed the file (it is parsed again);
-* ``add_ms``: adding a user to 1,000 others (the CLI's side: lock, read, rewrite, fsync, rename).
+* ``add_ms``: adding a user to 1,000 others (the CLI's side: lock, read, rewrite, fsync, rename);
+* ``login_cookie_us``: checking the web page's login cookie (HMAC, expiry, the user's current token binding),
+  and issuing one.
 
 The data directory is a fresh temporary folder (``--dir`` to put it on another file system).
 
@@ -20,7 +22,8 @@ import time
 
 from common import machine, median_ms
 
-from curvefm.access import TOKEN_PREFIX, UserStore
+from curvefm.access import TOKEN_PREFIX, UserStore, signing_key
+from curvefm.service.login import LoginCookies
 
 
 def elapsed_ns(fn) -> int:
@@ -56,11 +59,17 @@ def main() -> None:
         assert api.authenticate(token) is not None
         wrong = TOKEN_PREFIX + "x" * 43
         extra = (f"extra{i}" for i in range(20))
+        cookies = LoginCookies(signing_key(data), api, ttl_s=3600)
+        user = api.authenticate(token)
+        cookie = cookies.issue(user)
+        assert cookies.verify(cookie) == user
         print(json.dumps({
             "users": args.users,
             "calls": args.calls,
             "authenticate_us": {"valid": per_call_us(lambda: api.authenticate(token), args.calls),
                                 "wrong": per_call_us(lambda: api.authenticate(wrong), args.calls)},
+            "login_cookie_us": {"verify": per_call_us(lambda: cookies.verify(cookie), args.calls),
+                                "issue": per_call_us(lambda: cookies.issue(user), args.calls)},
             "first_after_change_ms": first_after_change_ms(api, cli, token, 20),
             "add_ms": round(median_ms(lambda: cli.add(next(extra)), 20), 2),
             "file_bytes": api.path.stat().st_size,
