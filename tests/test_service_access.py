@@ -105,8 +105,9 @@ RULES: dict[tuple[str, str], Rule] = {
         lambda w: Call(session(w), json={"converter": "nearest-neighbor"}), other=404
     ),
     ("get", "/jobs/{job_id}"): Rule(lambda w: Call({"job_id": w.job}), other=404),
-    # the job has ended: whoever may cancel it is told there is nothing left to cancel
+    # the job has finished: whoever may cancel or retry it is told there is nothing to cancel or retry
     ("delete", "/jobs/{job_id}"): Rule(lambda w: Call({"job_id": w.job}), other=404, owner=409),
+    ("post", "/jobs/{job_id}/retry"): Rule(lambda w: Call({"job_id": w.job}), other=404, owner=409),
     ("get", "/jobs/{job_id}/files/{name}"): Rule(lambda w: Call({"job_id": w.job, "name": w.file}), other=404),
 }
 PUBLIC_PATHS = {path for (_, path), rule in RULES.items() if rule.public}

@@ -117,12 +117,22 @@ def test_jobs_and_result_files_follow_their_session(lab):
     expect(lab.other.get(file), 404, "not_found")
 
 
-def test_basis_jobs_are_seen_by_all_and_canceled_by_their_owner(lab):
+def test_basis_jobs_are_seen_by_all_and_canceled_or_retried_by_their_owner(lab):
     job = lab.basis(lab.owner, lab.shapes[0])  # the basis exists: the job finishes at once
     assert job["owner"] == "tester"
     assert lab.other.get(f"/jobs/{job['id']}").json()["id"] == job["id"]
     expect(lab.other.delete(f"/jobs/{job['id']}"), 403, "forbidden", "tester")
+    expect(lab.other.post(f"/jobs/{job['id']}/retry"), 403, "forbidden", "tester")
     expect(lab.owner.delete(f"/jobs/{job['id']}"), 409, "conflict", "finished")
+
+
+def test_a_refinement_of_a_deleted_session_is_not_run_again(lab):
+    session_id = lab.new_session()
+    lab.add_curve(lab.owner, session_id)
+    job = lab.refined(lab.owner, session_id)
+    assert lab.owner.delete(f"/sessions/{session_id}").status_code == 204
+    expect(lab.owner.post(f"/jobs/{job['id']}/retry"), 409, "conflict", session_id, "deleted")
+    assert not list((lab.api.data_dir / "sessions").glob(f"{session_id}.*"))
 
 
 def test_deleting_a_session_deletes_its_results(lab):
