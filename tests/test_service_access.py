@@ -110,7 +110,9 @@ RULES: dict[tuple[str, str], Rule] = {
     ("post", "/jobs/{job_id}/retry"): Rule(lambda w: Call({"job_id": w.job}), other=404, owner=409),
     ("get", "/jobs/{job_id}/files/{name}"): Rule(lambda w: Call({"job_id": w.job, "name": w.file}), other=404),
 }
-PUBLIC_PATHS = {path for (_, path), rule in RULES.items() if rule.public}
+PUBLIC_PATHS = {path for (_, path), rule in RULES.items() if rule.public} | {
+    "/vendor/three/{path:path}",  # the UI shell's answer when three.js is not installed (service/ui.py)
+}
 
 
 @pytest.fixture(scope="module")
