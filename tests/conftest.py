@@ -159,6 +159,7 @@ class Processes:
     def __init__(self, folder: Path):
         self.folder = folder
         self.started: list[subprocess.Popen] = []
+        self.tokens: dict[tuple[Path, str], str] = {}  # one token per user and data directory, for replicas
 
     def start(self, args: list[str], name: str, env: dict[str, str] | None = None) -> subprocess.Popen:
         log = self.folder / f"{name}.log"
@@ -181,12 +182,22 @@ class Processes:
         if redis_url:
             args += ["--redis-url", redis_url]
         name = f"api-{port}"
-        token = add_user(data_dir, user) if user else None
+        token = self.token(data_dir, user) if user else None
         # tests drive a server far faster than a person does: no rate limit unless the test sets one
         process = self.start(args, name, {"CURVEFM_RATE_LIMIT": "0", **(env or {})})
         api = Api(process, f"http://127.0.0.1:{port}", self.folder / f"{name}.log", data_dir, token)
         wait_until_healthy(api)
         return api
+
+    def token(self, data_dir: Path, user: str) -> str:
+        """The token of ``user`` on ``data_dir``: the one given to an earlier API on it while it still works (two
+        processes serving one directory share the user), else a new one."""
+        from curvefm.access import UserStore
+
+        token = self.tokens.get((data_dir, user))
+        if token is None or UserStore(data_dir).authenticate(token) is None:
+            token = self.tokens[(data_dir, user)] = add_user(data_dir, user)
+        return token
 
     def worker(self, redis_url: str, prefix: str, name: str) -> subprocess.Popen:
         args = [*WORKER_COMMAND, "--redis-url", redis_url, "--name", f"{prefix}{name}"]

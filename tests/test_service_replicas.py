@@ -48,7 +48,7 @@ def test_concurrent_adds_alternating_between_two_processes_are_all_kept(replicas
 
     def adds(worker: int) -> None:
         rng = np.random.default_rng(worker)
-        clients = [httpx.Client(base_url=api.url, timeout=120) for api in replicas]
+        clients = [httpx.Client(base_url=api.url, timeout=120, headers=api.client.headers) for api in replicas]
         try:
             for i in range(ADDS):
                 a, b = (int(v) for v in rng.choice(4098, 2, replace=False))
