@@ -154,11 +154,11 @@ def test_an_upload_over_the_limit_stops_at_the_limit(server, how):
     body, content_type = multipart("huge.off", b"OFF\n" + b"0 " * (2 * limit))
     before, written_before = snapshot(server.data), bytes_written(server)
     if how == "chunked":
-        response = send_raw(server, chunked_request(body, content_type))
+        response = send_raw(server, chunked_request(body, content_type, server.token))
         assert response.startswith(b"HTTP/1.1 413"), response[:300]
         assert b"max_upload_bytes" in response and b"CURVEFM_MAX_UPLOAD_BYTES" in response, response
     else:
-        response = send_raw(server, lying_request(body, content_type, declared=1000))
+        response = send_raw(server, lying_request(body, content_type, declared=1000, token=server.token))
         assert response.startswith(b"HTTP/1.1 422") and b"body.file" in response, response[:300]
     written = bytes_written(server) - written_before
     assert written < limit, f"the server wrote {written} bytes while refusing a {len(body)}-byte upload"
@@ -198,16 +198,18 @@ def multipart(filename: str, content: bytes) -> tuple[bytes, str]:
     return head + content + f"\r\n--{boundary}--\r\n".encode(), f"multipart/form-data; boundary={boundary}"
 
 
-UPLOAD_LINES = "POST /shapes HTTP/1.1\r\nHost: localhost\r\n"  # the server answers allowed hosts only
+def upload_lines(token: str) -> str:
+    """The request line and headers of an upload by the test's user (the server answers allowed hosts only)."""
+    return f"POST /shapes HTTP/1.1\r\nHost: localhost\r\nAuthorization: Bearer {token}\r\n"
 
 
-def chunked_request(body: bytes, content_type: str) -> list[bytes]:
-    head = f"{UPLOAD_LINES}Content-Type: {content_type}\r\nTransfer-Encoding: chunked\r\n\r\n"
+def chunked_request(body: bytes, content_type: str, token: str) -> list[bytes]:
+    head = f"{upload_lines(token)}Content-Type: {content_type}\r\nTransfer-Encoding: chunked\r\n\r\n"
     return [head.encode()] + [b"%x\r\n%s\r\n" % (len(part), part) for part in chunks(body)] + [b"0\r\n\r\n"]
 
 
-def lying_request(body: bytes, content_type: str, declared: int) -> list[bytes]:
-    head = f"{UPLOAD_LINES}Content-Type: {content_type}\r\nContent-Length: {declared}\r\n\r\n"
+def lying_request(body: bytes, content_type: str, declared: int, token: str) -> list[bytes]:
+    head = f"{upload_lines(token)}Content-Type: {content_type}\r\nContent-Length: {declared}\r\n\r\n"
     return [head.encode(), *chunks(body)]
 
 
