@@ -36,17 +36,21 @@ class Call:
 
 @dataclass(frozen=True)
 class Rule:
-    """``build(world)`` makes the request; ``other`` and ``owner`` (which admins get too) are the statuses
-    expected, ``OK`` for any 2xx. Callers without valid credentials get 401 unless the route is ``public``."""
+    """``build(world)`` makes the request; ``other``, ``owner`` and ``admin`` (by default what the owner gets)
+    are the statuses expected, ``OK`` for any 2xx. Callers without valid credentials get 401 unless the route is
+    ``public``."""
 
     build: Callable[[World], Call]
     other: int | str = OK
     owner: int | str = OK
+    admin: int | str | None = None
     public: bool = False
 
     def expected(self, caller: str) -> int | str:
         if caller in ("anonymous", "wrong"):
             return OK if self.public else 401
+        if caller == "admin" and self.admin is not None:
+            return self.admin
         return self.other if caller == "other" else self.owner
 
 
@@ -80,6 +84,7 @@ RULES: dict[tuple[str, str], Rule] = {
     ("post", "/auth/logout"): Rule(lambda w: Call()),
     ("get", "/auth/me"): Rule(lambda w: Call()),
     ("get", "/plugins"): Rule(lambda w: Call()),
+    ("get", "/audit"): Rule(lambda w: Call(params={"limit": 5}), other=403, owner=403, admin=OK),
     ("get", "/shapes"): Rule(lambda w: Call()),
     ("post", "/shapes"): Rule(lambda w: Call(files={"file": ("e.off", off_bytes(ellipsoid(6, 12)))})),
     ("get", "/shapes/{shape_id}"): Rule(lambda w: Call({"shape_id": w.lab.shapes[0]})),
