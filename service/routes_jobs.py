@@ -12,10 +12,16 @@ from curvefm.errors import NotFound, shown
 from curvefm.service.deps import JOB_ERRORS, ServicesDep, job_model
 from curvefm.service.errors import error_responses
 from curvefm.service.models import JobInfoModel
+from curvefm.service.openapi import SchemaRoute
 
-router = APIRouter()
+router = APIRouter(route_class=SchemaRoute)
 ERRORS = {**error_responses(404, 409, 422), **JOB_ERRORS}
 _SAFE_NAME = re.compile(r"^[A-Za-z0-9_-][A-Za-z0-9_.-]{0,127}$")
+FILE_TYPES = {".txt": "text/plain", ".obj": "model/obj"}
+"""Media types of the result files by suffix; any other file (``.npy``) is ``application/octet-stream``."""
+BINARY = "application/octet-stream"
+FILE_CONTENT = {media_type: {"schema": {"type": "string"}} for media_type in FILE_TYPES.values()}
+FILE_CONTENT[BINARY] = {"schema": {"type": "string", "format": "binary"}}
 
 
 @router.get("/jobs/{job_id}", response_model=JobInfoModel, responses=ERRORS, tags=["jobs"])
@@ -39,13 +45,19 @@ def cancel_job(job_id: str, services: ServicesDep) -> JobInfoModel:
     return job_model(services.queue.cancel(job_id))
 
 
-@router.get("/jobs/{job_id}/files/{name}", responses=error_responses(404, 422), tags=["jobs"])
+@router.get(
+    "/jobs/{job_id}/files/{name}",
+    response_class=FileResponse,
+    responses={200: {"content": FILE_CONTENT}, **error_responses(404, 422)},
+    tags=["jobs"],
+)
 def get_job_file(job_id: str, name: str, services: ServicesDep) -> FileResponse:
-    """A file a refinement job wrote (listed in its ``links``)."""
+    """A file a refinement job wrote (listed in its ``links``): maps as text (``.txt``), numpy arrays
+    (``.npy``), the textured target (``.obj``)."""
     path = services.store.root / "results" / job_id / name
     if not (_SAFE_NAME.match(job_id) and _SAFE_NAME.match(name) and path.is_file()):
         raise NotFound(f"job {shown(job_id)} has no result file '{shown(name)}'")
-    return FileResponse(path, filename=name)
+    return FileResponse(path, filename=name, media_type=FILE_TYPES.get(path.suffix, BINARY))
 
 
 @router.get("/plugins", tags=["plugins"])
