@@ -16,6 +16,7 @@ from curvefm.service.headers import SecurityHeaders, ui_csp
 from curvefm.service.hints import install_hints
 from curvefm.service.hosts import HostCheck
 from curvefm.service.logs import log_config
+from curvefm.service.openapi import install_openapi
 from curvefm.service.ratelimit import RateLimit, make_buckets
 from curvefm.service.settings import LOOPBACK_NAMES, Settings
 from curvefm.service.ui import INDEX_HTML, is_ui_path, mount_ui
@@ -96,6 +97,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         title="curvefm", version="0.1.0", description=DESCRIPTION, lifespan=lifespan, responses=error_responses(500)
     )
     install_error_handlers(app)
+    install_openapi(app)
     install_hints(app)
     # the last added runs first: headers on every answer, then the Host check, the rate limit, the body size
     app.add_middleware(BodySizeLimit, settings=settings)

@@ -76,12 +76,16 @@ def status_of(exc: CurvefmError) -> int:
 
 DESCRIPTIONS = {
     400: "input the schema cannot describe is wrong, e.g. parameters a plugin refuses (the detail names it)",
+    401: "no valid token: a bearer token, or the login cookie",
+    403: "the caller is known but may not do this (an admin's route, a foreign Origin or Host)",
     404: "no such shape, session, curve, job or result file",
     409: "well formed, but the stored data does not allow it: a vertex id or path the shape does not have, a k "
     "larger than the shape allows, bases not computed yet, a job that already ended",
     413: "larger than a configured limit (the detail names the limit and its setting)",
     422: "the request does not match this schema (fields names each problem)",
+    429: "more requests, sessions or concurrent jobs than a configured limit allows; Retry-After when it passes",
     500: "the server's failure, not the request's (error_id files the details in the server log)",
+    503: "a service the request needs is down (Redis); Retry-After says when to try again",
 }
 
 
