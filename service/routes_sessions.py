@@ -82,7 +82,7 @@ def get_map(session_id: str, services: ServicesDep) -> MapResponse:
     )
 
 
-FILE_IDS = r"^[0-9]+(,[0-9]+)*$"
+FILE_IDS = r"^[0-9]{1,10}(,[0-9]{1,10})*$"  # ten digits at most: no id beyond int64 reaches numpy
 TRANSFER_HEADERS = {
     "X-Shape": {"description": "n,d: rows (target vertices) and values per row", "schema": {"type": "string"}},
     "X-Revision": {"description": "the session revision the map had", "schema": {"type": "string"}},

@@ -24,10 +24,19 @@ SCHEMA_VALID_BUT_REFUSED = {
 }
 """Operations that may answer 400 to a request the schema accepts, and why (their 400 says so too)."""
 
+ACCEPTED = ["2xx", "404", "409", "413"]
+"""What may answer a request the schema accepts: success, an id or state the stored data lacks, or a limit the
+operator configured (413 names it and its setting)."""
+
+CHECKS = f"""
+[checks.positive_data_acceptance]
+expected-statuses = {json.dumps(ACCEPTED)}
+"""
+
 OPERATIONS = """
 [[operations]]
 include-name = "{name}"
-checks.positive_data_acceptance.expected-statuses = ["2xx", "400", "404", "409"]
+checks.positive_data_acceptance.expected-statuses = {statuses}
 """
 
 CURVE_OPERATIONS = """
@@ -52,8 +61,9 @@ def schemathesis_config(api, session_id: str, job: dict) -> str:
     }
     assert parameters["path.name"] in job["links"], job["links"]
     lines = "".join(f"{json.dumps(key)} = {json.dumps(value)}\n" for key, value in parameters.items())
-    refused = "".join(OPERATIONS.format(name=name) for name in SCHEMA_VALID_BUT_REFUSED)
-    return f"[parameters]\n{lines}{refused}{CURVE_OPERATIONS}"
+    statuses = json.dumps([*ACCEPTED, "400"])
+    refused = "".join(OPERATIONS.format(name=name, statuses=statuses) for name in SCHEMA_VALID_BUT_REFUSED)
+    return f"[parameters]\n{lines}{CHECKS}{refused}{CURVE_OPERATIONS}"
 
 
 def schemathesis_command(url: str, config: Path, report: Path, token: str | None = None) -> list[str]:
