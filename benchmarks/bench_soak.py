@@ -14,7 +14,7 @@ offered, the errors (any answer but 2xx, or no answer) and the server's resident
 load, in its middle and at its end (and the largest seen, sampled every few seconds). Prints JSON.
 
 Usage: ``python benchmarks/bench_soak.py [--minutes 5] [--sessions 50] [--rate 2] [--pair faust|cat]
-[--data DIR]``
+[--data DIR] [--log FILE]``
 """
 
 from __future__ import annotations
@@ -184,9 +184,10 @@ def main() -> None:
     parser.add_argument("--k", type=int, default=120)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--data", type=Path, help="data directory (kept; reuses bases); default: a temporary one")
+    parser.add_argument("--log", type=Path, help="where the server's output goes (default: nowhere)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="curvefm-soak-") as scratch:
-        server, url = start_server(args.data or Path(scratch))
+        server, url = start_server(args.data or Path(scratch), log=args.log)
         try:
             result = asyncio.run(soak(url, server.pid, args))
         finally:
