@@ -12,6 +12,8 @@ import sys
 from collections import Counter
 from pathlib import Path
 
+from curvefm.access import UserStore
+
 SEED = 20261122
 MAX_EXAMPLES = 20
 """Cases per operation and phase; about 500 cases in all."""
@@ -76,10 +78,17 @@ def schemathesis_command(url: str, config: Path, report: Path, token: str | None
     return command
 
 
+UNLIMITED = {"CURVEFM_QUOTA_SESSIONS": "0", "CURVEFM_QUOTA_JOBS": "0", "CURVEFM_QUOTA_BYTES": "0"}
+"""Quotas off (and the rate limit, with ``--rate-limit 0``): the cases test the schema, not the limits."""
+
+
 def seeded_server(processes, redis_url: str, redis_prefix: str, folder: Path):
-    """An API and a worker on Redis, with the demo pair, a session with one curve and a finished refinement."""
-    env = {"CURVEFM_QUEUE_PREFIX": redis_prefix}
-    api = processes.api(folder / "data", redis_url=redis_url, env=env)
+    """An API and a worker on Redis, with the demo pair, a session with one curve and a finished refinement;
+    the API has an admin, whose token is ``api.token``."""
+    token = UserStore(folder / "data").add("schemathesis", admin=True)
+    env = {"CURVEFM_QUEUE_PREFIX": redis_prefix, **UNLIMITED}
+    api = processes.api(folder / "data", redis_url=redis_url, env=env, args=["--rate-limit", "0"])
+    api.token = token
     processes.worker(redis_url, redis_prefix, "schema")
     _, session_id = api.demo_pair(folder, K)
     curve = {"source": [0, 100], "target": [0, 100]}
@@ -108,7 +117,11 @@ def test_schemathesis_finds_nothing(processes, redis_url, redis_prefix, tmp_path
     config.write_text(schemathesis_config(api, session_id, job))
     report = tmp_path / "schemathesis.ndjson"
     run = subprocess.run(
-        schemathesis_command(api.url, config, report), capture_output=True, text=True, timeout=300, cwd=tmp_path
+        schemathesis_command(api.url, config, report, api.token),
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=tmp_path,
     )
     summary = run.stdout[run.stdout.find("=== FAILURES") :] or run.stdout[-4000:]
     assert run.returncode == 0, f"schemathesis found problems:\n{summary}\n{run.stderr[-2000:]}"
