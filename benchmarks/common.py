@@ -55,18 +55,22 @@ def bench_token(data: Path) -> str:
 
 
 def start_server(
-    data: Path, args: tuple[str, ...] = ("--rate-limit", "0"), env: dict[str, str] | None = None
+    data: Path,
+    args: tuple[str, ...] = ("--rate-limit", "0"),
+    env: dict[str, str] | None = None,
+    log: Path | None = None,
 ) -> tuple[subprocess.Popen, str, dict[str, str]]:
     """``curvefm serve`` (embedded jobs unless ``args`` name a Redis) on a free port with data in ``data``:
     (process, base url, the headers that authenticate a request as the user ``bench``). By default without a
-    rate limit: benchmarks load the server from one client."""
+    rate limit: benchmarks load the server from one client. Its output goes to ``log`` (default: nowhere)."""
     headers = {"Authorization": f"Bearer {bench_token(data)}"}
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
     command = [sys.executable, "-m", "curvefm.service", "--port", str(port), "--data", str(data), *args]
     environment = {**os.environ, **(env or {})}
-    server = subprocess.Popen(command, env=environment, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    output = open(log, "ab") if log else subprocess.DEVNULL  # noqa: SIM115  (the child holds it)
+    server = subprocess.Popen(command, env=environment, stdout=output, stderr=subprocess.STDOUT)
     url = f"http://127.0.0.1:{port}"
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline:

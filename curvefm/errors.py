@@ -4,9 +4,11 @@ Raise the subclass that says whose fault it is; catch :class:`CurvefmError` to h
 a ``code``, the short name programs see (the HTTP API's ``error`` field, a failed job's ``kind``); HTTP
 statuses are chosen in :mod:`curvefm.service.errors`, not here.
 
-* :class:`InvalidInput`: bad input a user can fix (bad mesh, unknown plugin, vertex out of range, wrong k).
+* :class:`InvalidInput`: bad input a user can fix (bad mesh, unknown plugin, malformed parameters).
 * :class:`NotFound`: no such shape, session, curve, job or file.
-* :class:`Conflict`: the request is well formed but the state does not allow it (e.g. bases not computed yet).
+* :class:`Conflict`: the request is well formed but the state does not allow it: what it names does not fit the
+  stored data (bases not computed yet, a vertex id or a path the shape does not have, a k larger than the shape
+  allows). The HTTP API publishes well-formed requests in its schema; these are the ones it cannot check.
 * :class:`ResourceLimit`: the input is larger than a configured limit (:class:`LimitExceeded` names the limit);
   :class:`TooMany`: more requests, sessions or concurrent jobs than a configured limit allows.
 * :class:`Unauthenticated`: no credentials, or ones that are wrong, rotated or of a removed user.

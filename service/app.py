@@ -20,6 +20,7 @@ from curvefm.service.headers import SecurityHeaders, ui_csp
 from curvefm.service.hints import install_hints
 from curvefm.service.hosts import HostCheck
 from curvefm.service.logs import log_config
+from curvefm.service.openapi import install_openapi
 from curvefm.service.ratelimit import RateLimit, make_buckets
 from curvefm.service.settings import LOOPBACK_NAMES, Settings
 from curvefm.service.ui import INDEX_HTML, is_ui_path, mount_ui
@@ -111,6 +112,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         redoc_url=None,
     )
     install_error_handlers(app)
+    install_openapi(app)
     install_hints(app)
     # the last added runs first: headers on every answer, then the Host check, the rate limit, credentials
     # (of writes), the body size

@@ -57,7 +57,7 @@ def start_services(settings: Settings) -> Services:
         settings.job_ttl_s,
     )
     records = SessionStore(store.root)
-    live = LiveSessions(store, records)
+    live = LiveSessions(store, records, size=settings.live_sessions)
     # require_plugin's errors list the installed plugins
     sessions = SessionEditor(records, live, find_plugin=require_plugin, limits=settings.session_limits)
     quotas = Quotas(settings, Usage(store.root), store, records, queue)

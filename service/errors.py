@@ -33,6 +33,7 @@ from curvefm.errors import (
 from curvefm.registry import Plugin
 from curvefm.service.headers import API_CSP, FIXED_HEADERS
 from curvefm.service.models import ErrorBody
+from curvefm.service.ui import api_methods
 
 log = logging.getLogger("curvefm.service")
 
@@ -75,9 +76,26 @@ def status_of(exc: CurvefmError) -> int:
     return next(STATUS[cls] for cls in type(exc).__mro__ if cls in STATUS)
 
 
-def error_responses(*statuses: int) -> dict[int | str, dict]:
-    """OpenAPI ``responses`` for these error statuses (the app declares 500, which any route can answer)."""
-    return {status: {"model": ErrorBody} for status in statuses}
+DESCRIPTIONS = {
+    400: "input the schema cannot describe is wrong, e.g. parameters a plugin refuses (the detail names it)",
+    401: "no valid token: a bearer token, or the login cookie",
+    403: "the caller is known but may not do this (an admin's route, a foreign Origin or Host)",
+    404: "no such shape, session, curve, job or result file",
+    409: "well formed, but the stored data does not allow it: a vertex id or path the shape does not have, a k "
+    "larger than the shape allows, bases not computed yet, a job that already ended",
+    413: "larger than a configured limit (the detail names the limit and its setting)",
+    422: "the request does not match this schema (fields names each problem)",
+    429: "more requests, sessions or concurrent jobs than a configured limit allows; Retry-After when it passes",
+    500: "the server's failure, not the request's (error_id files the details in the server log)",
+    503: "a service the request needs is down (Redis); Retry-After says when to try again",
+}
+
+
+def error_responses(*statuses: int, described: dict[int, str] | None = None) -> dict[int | str, dict]:
+    """OpenAPI ``responses`` for these error statuses, with what each means here (``described`` overrides);
+    the app declares 500, which any route can answer."""
+    descriptions = {**DESCRIPTIONS, **(described or {})}
+    return {status: {"model": ErrorBody, "description": descriptions[status]} for status in statuses}
 
 
 def error_response(exc: CurvefmError, detail: str | None = None) -> JSONResponse:
@@ -110,6 +128,12 @@ def internal_error_response(request: Request, exc: Exception) -> JSONResponse:
     return JSONResponse(body, status_code=500, headers=headers)
 
 
+def allow_header(request: Request, default: str) -> str:
+    """Every method the API serves at the request's path (the router names only the first route's methods,
+    and ``GET /jobs/{id}`` and ``DELETE /jobs/{id}`` are two routes); ``default`` where no API route matches."""
+    return ", ".join(api_methods(request.app.router.routes, request.scope)) or default
+
+
 def install_error_handlers(app: FastAPI) -> None:
     @app.exception_handler(CurvefmError)
     async def curvefm_error(request: Request, exc: CurvefmError) -> JSONResponse:
@@ -124,7 +148,10 @@ def install_error_handlers(app: FastAPI) -> None:
     @app.exception_handler(HTTPException)
     async def http_error(request: Request, exc: HTTPException) -> JSONResponse:
         body = {"error": CODE.get(exc.status_code, InvalidInput.code), "detail": str(exc.detail)}
-        return JSONResponse(body, status_code=exc.status_code, headers=exc.headers)
+        headers = dict(exc.headers or {})
+        if exc.status_code == 405:
+            headers["Allow"] = allow_header(request, headers.get("Allow", ""))
+        return JSONResponse(body, status_code=exc.status_code, headers=headers)
 
     @app.exception_handler(RequestValidationError)
     async def validation_error(request: Request, exc: RequestValidationError) -> JSONResponse:

@@ -6,6 +6,7 @@ from datetime import datetime
 from typing import Annotated
 
 from fastapi import APIRouter, Query
+from pydantic import BeforeValidator
 
 from curvefm.errors import Forbidden
 from curvefm.service.auth import CurrentUser
@@ -14,6 +15,8 @@ from curvefm.service.errors import error_responses
 from curvefm.service.models import AuditEvent
 
 router = APIRouter(tags=["audit"])
+IsoTime = Annotated[datetime, BeforeValidator(datetime.fromisoformat)]
+"""An ISO 8601 time, as the schema's date-time says (pydantic alone would read "0.5" as a Unix time)."""
 MAX_EVENTS = 10_000
 
 
@@ -22,7 +25,9 @@ def read_audit(
     caller: CurrentUser,
     services: ServicesDep,
     limit: Annotated[int, Query(ge=1, le=MAX_EVENTS, description="the last this many events")] = 100,
-    since: Annotated[datetime | None, Query(description="only events at or after this ISO 8601 time")] = None,
+    since: Annotated[
+        IsoTime | None, Query(description="only events at or after this ISO 8601 time")
+    ] = None,
     user: Annotated[str | None, Query(max_length=64, description="only events of this user")] = None,
 ) -> list[dict]:
     """Events oldest first; admins only (403 for other users)."""

@@ -13,12 +13,18 @@ from curvefm.service.auth import AUTHENTICATED, CurrentUser
 from curvefm.service.deps import JOB_ERRORS, ServicesDep, job_model, refined_session, results_dir
 from curvefm.service.errors import error_responses
 from curvefm.service.models import JobInfoModel
+from curvefm.service.openapi import SchemaRoute
 from curvefm.service.permissions import job_for
 
-router = APIRouter(dependencies=AUTHENTICATED, responses=error_responses(401, 403))
-public = APIRouter()
+router = APIRouter(route_class=SchemaRoute, dependencies=AUTHENTICATED, responses=error_responses(401, 403))
+public = APIRouter(route_class=SchemaRoute)
 ERRORS = {**error_responses(404, 409, 422), **JOB_ERRORS}
 _SAFE_NAME = re.compile(r"^[A-Za-z0-9_-][A-Za-z0-9_.-]{0,127}$")
+FILE_TYPES = {".txt": "text/plain", ".obj": "model/obj"}
+"""Media types of the result files by suffix; any other file (``.npy``) is ``application/octet-stream``."""
+BINARY = "application/octet-stream"
+FILE_CONTENT = {media_type: {"schema": {"type": "string"}} for media_type in FILE_TYPES.values()}
+FILE_CONTENT[BINARY] = {"schema": {"type": "string", "format": "binary"}}
 
 
 @router.get("/jobs/{job_id}", response_model=JobInfoModel, responses=ERRORS, tags=["jobs"])
@@ -52,14 +58,20 @@ def cancel_job(job_id: str, services: ServicesDep, user: CurrentUser) -> JobInfo
     return job_model(services.queue.cancel(job_id))
 
 
-@router.get("/jobs/{job_id}/files/{name}", responses=error_responses(404, 422), tags=["jobs"])
+@router.get(
+    "/jobs/{job_id}/files/{name}",
+    response_class=FileResponse,
+    responses={200: {"content": FILE_CONTENT}, **error_responses(404, 422)},
+    tags=["jobs"],
+)
 def get_job_file(job_id: str, name: str, services: ServicesDep, user: CurrentUser) -> FileResponse:
-    """A file a refinement job wrote (listed in its ``links``); whoever may see the job may fetch it."""
+    """A file a refinement job wrote (listed in its ``links``): maps as text (``.txt``), numpy arrays
+    (``.npy``), the textured target (``.obj``); whoever may see the job may fetch it."""
     job_for(services, user, job_id)
     path = results_dir(services, job_id) / name
     if not (_SAFE_NAME.match(job_id) and _SAFE_NAME.match(name) and path.is_file()):
         raise NotFound(f"job {shown(job_id)} has no result file '{shown(name)}'")
-    return FileResponse(path, filename=name)
+    return FileResponse(path, filename=name, media_type=FILE_TYPES.get(path.suffix, BINARY))
 
 
 @router.get("/plugins", tags=["plugins"])

@@ -9,7 +9,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, Query, Response
 
-from curvefm.errors import Conflict, CurvefmError, InvalidInput, shown
+from curvefm.errors import Conflict, CurvefmError
 from curvefm.service.auth import AUTHENTICATED, CurrentUser
 from curvefm.service.deps import JOB_ERRORS, Services, ServicesDep, job_model, results_dir
 from curvefm.service.errors import error_responses, require_plugin
@@ -21,13 +21,25 @@ from curvefm.service.models import (
     SessionChange,
     SessionSummary,
 )
+from curvefm.service.openapi import SchemaRoute
 from curvefm.service.permissions import may_read, session_for
-from curvefm.session import MAX_VERTEX_ID, CurveSpec, SessionCreate, SessionRecord, TransferFunction
+from curvefm.session import CurveSpec, SessionCreate, SessionRecord, TransferFunction
 from curvefm.spectral import check_k
 
-router = APIRouter(tags=["sessions"], dependencies=AUTHENTICATED, responses=error_responses(401, 403))
+router = APIRouter(
+    tags=["sessions"], route_class=SchemaRoute, dependencies=AUTHENTICATED, responses=error_responses(401, 403)
+)
 ERRORS = error_responses(400, 404, 409, 413, 422)
 QUOTA_ERRORS = error_responses(400, 404, 409, 413, 422, 429)
+REFINE_ERRORS = error_responses(
+    400,
+    404,
+    409,
+    413,
+    422,
+    429,
+    described={400: "the converter's parameters contradict each other, e.g. k_final < k_init"},
+)
 
 
 @router.post("/sessions", status_code=201, response_model=SessionRecord, responses=QUOTA_ERRORS)
@@ -113,9 +125,21 @@ def get_map(session_id: str, services: ServicesDep, user: CurrentUser) -> MapRes
     )
 
 
+FILE_IDS = r"^[0-9]{1,10}(,[0-9]{1,10})*$"  # ten digits at most: no id beyond int64 reaches numpy
+TRANSFER_HEADERS = {
+    "X-Shape": {"description": "n,d: rows (target vertices) and values per row", "schema": {"type": "string"}},
+    "X-Revision": {"description": "the session revision the map had", "schema": {"type": "string"}},
+}
+
+
 @router.get(
     "/sessions/{session_id}/transfer",
-    responses={200: {"content": {"application/octet-stream": {}}}, **ERRORS},
+    response_class=Response,
+    responses={
+        200: {"content": {"application/octet-stream": {"schema": {"type": "string", "format": "binary"}}},
+              "headers": TRANSFER_HEADERS},
+        **ERRORS,
+    },
 )
 def get_transfer(
     session_id: str,
@@ -123,14 +147,15 @@ def get_transfer(
     user: CurrentUser,
     function: TransferFunction = "uv",
     vertices: Annotated[
-        str | None, Query(description="for function=indicator: comma-separated source file ids")
+        str | None,
+        Query(pattern=FILE_IDS, description="for function=indicator: comma-separated source file ids"),
     ] = None,
 ) -> Response:
     """A function on the source carried to the target through the current map: float32 little-endian,
     ``n x d`` row-major with one row per target vertex in internal order (as ``GET /shapes/{id}/mesh``).
     Headers: ``X-Shape: n,d`` and ``X-Revision``. ``uv``: the source's texture coordinates (or generated
     cylindrical ones); ``xyz``: source coordinates scaled to [0, 1] per axis; ``indicator``: 1 on
-    ``vertices``."""
+    ``vertices``, 0 elsewhere."""
     session_for(services, user, session_id, "read")
     values, revision = services.sessions.transfer(session_id, function, _parse_ids(vertices))
     headers = {"X-Shape": f"{values.shape[0]},{values.shape[1]}", "X-Revision": str(revision)}
@@ -141,7 +166,7 @@ def get_transfer(
     "/sessions/{session_id}/refine",
     status_code=202,
     response_model=JobInfoModel,
-    responses={**QUOTA_ERRORS, **JOB_ERRORS},
+    responses={**REFINE_ERRORS, **JOB_ERRORS},
 )
 def refine(session_id: str, body: RefineRequest, services: ServicesDep, user: CurrentUser) -> JobInfoModel:
     """Queue pointwise maps both ways for the session's curves as they are now (a job of yours; reading the
@@ -180,13 +205,4 @@ def _discard_job(services: Services, job_id: str) -> None:
 
 
 def _parse_ids(text: str | None) -> list[int] | None:
-    if not text:
-        return None
-    try:
-        ids = [int(part) for part in text.split(",") if part.strip()]
-    except ValueError:
-        raise InvalidInput(f"vertices must be comma-separated integers, got '{shown(text)}'") from None
-    for vertex in ids:
-        if not 0 <= vertex <= MAX_VERTEX_ID:
-            raise InvalidInput(f"vertices: {vertex} is not a vertex id (0-based file ids, 0 to {MAX_VERTEX_ID})")
-    return ids
+    return [int(part) for part in text.split(",")] if text else None

@@ -19,18 +19,26 @@ from curvefm.service.auth import AUTHENTICATED, CurrentUser
 from curvefm.service.deps import JOB_ERRORS, Services, ServicesDep, job_model, submit_basis
 from curvefm.service.errors import error_responses, require_plugin
 from curvefm.service.models import BasisInfo, BasisRequest, JobInfoModel, ShapeInfo
+from curvefm.service.openapi import SchemaRoute
 from curvefm.service.permissions import check_shape_manager, check_unused
 from curvefm.service.quotas import stored_bytes
 from curvefm.spectral import check_k
 
-router = APIRouter(tags=["shapes"], dependencies=AUTHENTICATED, responses=error_responses(401, 403))
+router = APIRouter(
+    tags=["shapes"], route_class=SchemaRoute, dependencies=AUTHENTICATED, responses=error_responses(401, 403)
+)
 ERRORS = error_responses(400, 404, 409, 413, 422)
 QUOTA_ERRORS = error_responses(400, 404, 409, 413, 422, 429)
+UPLOAD_ERRORS = error_responses(
+    400, 413, 422, 429, described={400: "not a mesh curvefm reads (the detail says why)"}
+)
 COPY_CHUNK = 1 << 20
 MESH_FORMAT = "curvefm-mesh-1"
 
 
-@router.post("/shapes", status_code=201, response_model=ShapeInfo, responses={200: {"model": ShapeInfo}, **ERRORS})
+@router.post(
+    "/shapes", status_code=201, response_model=ShapeInfo, responses={200: {"model": ShapeInfo}, **UPLOAD_ERRORS}
+)
 def upload_shape(
     response: Response,
     file: Annotated[UploadFile, File(description=f"a mesh file: {', '.join(SUPPORTED_FORMATS)}")],

@@ -42,6 +42,9 @@ class Settings:
     job_retries: int = 1
     """How often a job whose worker died is run again before it is marked failed (RQ mode)."""
     embedded_workers: int = 2
+    live_sessions: int = 64
+    """Sessions kept live (solver built) in memory; more active sessions than this are rebuilt from disk on
+    every edit, which costs tens of milliseconds each."""
     demo: bool = False
     allowed_hosts: tuple[str, ...] = LOOPBACK_NAMES
     """Host header values answered (lower case, no port); ``*`` answers any."""
@@ -125,6 +128,7 @@ ENV: dict[str, tuple[str, Callable[[str], object]]] = {
     "redis_url": ("CURVEFM_REDIS_URL", str),
     "queue_prefix": ("CURVEFM_QUEUE_PREFIX", str),
     "job_retries": ("CURVEFM_JOB_RETRIES", _non_negative(int)),
+    "live_sessions": ("CURVEFM_LIVE_SESSIONS", _non_negative(int)),
     "allowed_hosts": ("CURVEFM_ALLOWED_HOSTS", host_list),
     "quota_bytes": ("CURVEFM_QUOTA_BYTES", _non_negative(int)),
     "quota_sessions": ("CURVEFM_QUOTA_SESSIONS", _non_negative(int)),

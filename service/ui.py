@@ -15,10 +15,13 @@ from pathlib import Path
 from fastapi import FastAPI
 from fastapi.responses import JSONResponse
 from fastapi.staticfiles import StaticFiles
+from starlette.routing import BaseRoute, Match, Mount
+from starlette.types import Scope
 
 STATIC_DIR = Path(__file__).parent / "static"
 INDEX_HTML = STATIC_DIR / "index.html"
 VENDOR_URL = "/vendor/three"
+METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE")
 REPO_THREE_DIR = Path(__file__).resolve().parents[1] / "node_modules" / "three"
 log = logging.getLogger("curvefm.service")
 
@@ -55,4 +58,29 @@ def mount_ui(app: FastAPI) -> None:
         def three_missing(path: str) -> JSONResponse:
             return JSONResponse({"error": "not_found", "detail": message}, status_code=404)
 
-    app.mount("/", StaticFiles(directory=STATIC_DIR, html=True), name="ui")
+    app.router.routes.append(UiMount(app.router.routes))
+
+
+class UiMount(Mount):
+    """The UI's catch-all mount at ``/``, which leaves every path an API route serves to the API (so that a
+    method the API does not serve there answers the API's 405 with its ``Allow``, not the static files')."""
+
+    def __init__(self, routes: list[BaseRoute]):
+        super().__init__("/", app=StaticFiles(directory=STATIC_DIR, html=True), name="ui")
+        self.api_routes = list(routes)
+
+    def matches(self, scope: Scope) -> tuple[Match, Scope]:
+        if scope["type"] == "http" and api_methods(self.api_routes, scope):
+            return Match.NONE, {}
+        return super().matches(scope)
+
+
+def api_methods(routes: list[BaseRoute], scope: Scope) -> list[str]:
+    """The methods the API's routes among ``routes`` serve at the path of ``scope`` (none: not an API path).
+    Mounts (static files) are not the API."""
+    api = [route for route in routes if not isinstance(route, Mount)]
+    return [method for method in METHODS if any(_serves(route, scope, method) for route in api)]
+
+
+def _serves(route: BaseRoute, scope: Scope, method: str) -> bool:
+    return route.matches({**scope, "method": method})[0] == Match.FULL

@@ -160,73 +160,82 @@ def test_unknown_ids_in_edits(server):
     expect(server.client.post("/sessions", json=body), 404, "not_found", "feedbeef", "source")
 
 
-def test_vertex_ids_out_of_range(server):
+def test_vertex_ids_the_shape_does_not_have(server):
+    """A vertex id is well formed when it is a non-negative integer (the schema says so: 422 otherwise); one
+    the shape does not have conflicts with the stored shape (409)."""
     url = f"/sessions/{server.session}/curves"
-    expect(server.client.post(url, json={"source": [0, 99999], "target": [0, 5]}), 400, "invalid", "99999")
+    expect(server.client.post(url, json={"source": [0, 99999], "target": [0, 5]}), 409, "conflict", "99999")
     expect(server.client.post(url, json={"source": [0, 5], "target": [-1, 5]}), 422, "invalid", "body.target.0")
+    expect(server.client.post(url, json={"source": [0], "target": [0, 5]}), 422, "invalid", "body.source")
     explicit = {"source": [0, 3000], "target": [0, 3000], "explicit": True}
-    expect(server.client.post(url, json=explicit), 400, "invalid", "edge-connected")
+    expect(server.client.post(url, json=explicit), 409, "conflict", "edge-connected")
+    expect(server.client.post(url, json={"source": [7, 7], "target": [0, 5]}), 409, "conflict", "same vertex")
     transfer = f"/sessions/{server.session}/transfer"
-    expect(server.client.get(transfer, params={"function": "indicator", "vertices": "1,99999"}), 400, "invalid")
-    expect(server.client.get(transfer, params={"function": "indicator"}), 400, "invalid", "vertices")
+    indicator = {"function": "indicator", "vertices": "1,99999"}
+    expect(server.client.get(transfer, params=indicator), 409, "conflict", "99999")
+    expect(server.client.get(transfer, params={**indicator, "vertices": "1,,2"}), 422, "invalid", "vertices")
     assert server.client.get(transfer, params={"function": "curvature"}).status_code == 422
 
 
+def test_the_indicator_of_no_vertices_is_zero(server):
+    response = server.client.get(f"/sessions/{server.session}/transfer", params={"function": "indicator"})
+    assert response.status_code == 200, response.text
+    rows, columns = map(int, response.headers["X-Shape"].split(","))
+    assert len(response.content) == rows * columns * 4 and not response.content.strip(b"\0")
+
+
+def test_bodies_are_held_to_the_published_schema(server):
+    """What pydantic's lax mode would coerce (a string for a number, 0 for a boolean) is refused as the schema
+    says."""
+    url = f"/sessions/{server.session}/curves"
+    for wrong in ({"weight": "2"}, {"explicit": 0}, {"source": [0, "5"]}):
+        body = expect(server.client.post(url, json={"source": [0, 5], "target": [0, 5], **wrong}), 422, "invalid")
+        assert body["fields"][0]["field"].startswith(f"body.{next(iter(wrong))}"), body
+
+
 def test_unknown_plugins_list_what_is_installed(server):
+    """The schema lists the installed plugins; a request naming another one is refused with that list."""
     session = {"source": server.shapes[0], "target": server.shapes[1], "k": K, "tracer": "laser"}
-    body = expect(server.client.post("/sessions", json=session), 400, "invalid", "laser")
-    assert "geodesic" in body["available"]
+    expect(server.client.post("/sessions", json=session), 422, "invalid", "body.tracer", "laser", "geodesic")
     curve = {"source": [0, 5], "target": [0, 5], "tracer": "laser"}
-    expect(server.client.post(f"/sessions/{server.session}/curves", json=curve), 400, "invalid", "laser")
-    body = expect(
-        server.client.post(f"/shapes/{server.shapes[0]}/bases", json={"k": K, "plugin": "wavelets"}),
-        400,
-        "invalid",
-        "wavelets",
-    )
-    assert "laplace-beltrami" in body["available"]
-    body = expect(
-        server.client.post(f"/sessions/{server.session}/refine", json={"converter": "magic"}),
-        400,
-        "invalid",
-        "magic",
-    )
-    assert "nearest-neighbor" in body["available"]
+    url = f"/sessions/{server.session}/curves"
+    expect(server.client.post(url, json=curve), 422, "invalid", "laser", "anisotropic", "geodesic")
+    bases = f"/shapes/{server.shapes[0]}/bases"
+    expect(server.client.post(bases, json={"k": K, "plugin": "wavelets"}), 422, "invalid", "laplace-beltrami")
+    refine = f"/sessions/{server.session}/refine"
+    expect(server.client.post(refine, json={"converter": "magic"}), 422, "invalid", "magic", "nearest-neighbor")
+    variants = server.client.get("/openapi.json").json()["components"]["schemas"]["RefineRequest"]["anyOf"]
+    documented = {variant["properties"]["converter"]["enum"][0] for variant in variants}
+    assert {"zoomout", "rhm", "icp", "nearest-neighbor"} <= documented
 
 
 def test_refine_parameters_are_checked_at_submission(server):
     refine = f"/sessions/{server.session}/refine"
     body = {"converter": "zoomout", "params": {"k_init": 20, "k_final": 10}}
-    expect(server.client.post(refine, json=body), 400, "invalid", "zoomout")
+    expect(server.client.post(refine, json=body), 400, "invalid", "zoomout", "k_final")  # what no schema can say
     body = {"converter": "rhm", "params": {"max_iterations": -3}}
-    expect(server.client.post(refine, json=body), 400, "invalid", "rhm")
+    expect(server.client.post(refine, json=body), 422, "invalid", "body.params.max_iterations")
 
 
 def test_unknown_parameters_are_named(server):
     bases = f"/shapes/{server.shapes[0]}/bases"
-    expect(
-        server.client.post(bases, json={"k": K, "params": {"laplacian": "magic"}}),
-        400,
-        "invalid",
-        "laplacian",
-    )
-    expect(server.client.post(bases, json={"k": K, "params": {"colour": 1}}), 400, "invalid", "colour")
+    magic = {"k": K, "params": {"laplacian": "magic"}}
+    expect(server.client.post(bases, json=magic), 422, "invalid", "body.params.laplacian", "cotangent")
+    expect(server.client.post(bases, json={"k": K, "params": {"colour": 1}}), 422, "invalid", "colour")
     curve = {"source": [0, 5], "target": [0, 5], "tracer": "anisotropic", "tracer_params": {"strength": -1}}
-    expect(server.client.post(f"/sessions/{server.session}/curves", json=curve), 400, "invalid", "strength")
+    url = f"/sessions/{server.session}/curves"
+    expect(server.client.post(url, json=curve), 422, "invalid", "body.tracer_params.strength")
+    orphan = {"source": [0, 5], "target": [0, 5], "tracer_params": {"strength": 1}}
+    expect(server.client.post(url, json=orphan), 422, "invalid", "tracer_params")
     body = expect(server.client.post(bases, json={"k": K, "colour": 1}), 422, "invalid", "colour")
     assert body["fields"][0]["field"] == "body.colour"
     expect(server.client.post(bases, json={"k": "many"}), 422, "invalid", "body.k")
 
 
 def test_k_larger_than_the_mesh_allows(server):
-    expect(
-        server.client.post(f"/shapes/{server.shapes[0]}/bases", json={"k": 10**6}),
-        400,
-        "invalid",
-        "too large",
-    )
+    expect(server.client.post(f"/shapes/{server.shapes[0]}/bases", json={"k": 10**6}), 409, "conflict", "too large")
     session = {"source": server.shapes[0], "target": server.shapes[1], "k": 10**6}
-    expect(server.client.post("/sessions", json=session), 400, "invalid", "too large")
+    expect(server.client.post("/sessions", json=session), 409, "conflict", "too large")
 
 
 def test_session_whose_bases_are_not_ready(server):

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from curvefm.errors import InvalidInput
+from curvefm.errors import Conflict
 
 DEFAULT_SAMPLES = 100
 
@@ -23,7 +23,7 @@ def resample(vertices: np.ndarray, path: np.ndarray, samples: int = DEFAULT_SAMP
     segment = np.linalg.norm(np.diff(vertices[path], axis=0), axis=1)
     cumulative = np.r_[0.0, np.cumsum(segment)]
     if cumulative[-1] <= 0:
-        raise InvalidInput("the curve has zero length; pick two different points")
+        raise Conflict("the curve has zero length on this mesh; pick two different points")
     positions = np.linspace(0.0, cumulative[-1], samples)
     index = np.clip(np.searchsorted(cumulative, positions, side="right") - 1, 0, len(segment) - 1)
     t = (positions - cumulative[index]) / np.maximum(segment[index], 1e-300)

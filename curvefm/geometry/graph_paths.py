@@ -6,7 +6,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
-from curvefm.errors import InvalidInput
+from curvefm.errors import Conflict, InvalidInput
 
 
 def shortest_path(graph: sp.csr_matrix, start: int, end: int) -> np.ndarray:
@@ -15,7 +15,7 @@ def shortest_path(graph: sp.csr_matrix, start: int, end: int) -> np.ndarray:
         return np.array([start], dtype=np.int64)
     dist, pred = dijkstra(graph, directed=False, indices=int(start), return_predecessors=True)
     if not np.isfinite(dist[end]):
-        raise InvalidInput(
+        raise Conflict(
             f"vertices {start} and {end} lie on different connected components: no curve joins them"
         )
     path = [int(end)]
@@ -32,7 +32,7 @@ def check_edge_path(graph: sp.csr_matrix, path: np.ndarray) -> None:
     connected = np.asarray(graph[a, b]).ravel() > 0
     if not connected.all():
         i = int(np.flatnonzero(~connected)[0])
-        raise InvalidInput(
+        raise Conflict(
             f"explicit path is not edge-connected: vertices {int(a[i])} and {int(b[i])} (positions {i} and "
             f"{i + 1}) share no edge"
         )

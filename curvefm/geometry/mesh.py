@@ -15,7 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from curvefm.cache import LRU
-from curvefm.errors import InvalidInput
+from curvefm.errors import Conflict, InvalidInput
 
 
 @dataclass
@@ -96,14 +96,14 @@ class Mesh:
         ids = ids.astype(np.int64)
         bad = (ids < 0) | (ids >= self.n_file_vertices)
         if bad.any():
-            raise InvalidInput(
+            raise Conflict(
                 f"{what} {int(ids[bad][0])} is out of range: mesh '{self.name}' has "
                 f"{self.n_file_vertices} vertices (ids are 0-based, 0..{self.n_file_vertices - 1})"
             )
         lookup = self._file_to_internal
         out = lookup[ids]
         if (out < 0).any():
-            raise InvalidInput(
+            raise Conflict(
                 f"{what} {int(ids[out < 0][0])} of mesh '{self.name}' belongs to no face (it was dropped as "
                 "unreferenced); pick a vertex on the surface"
             )

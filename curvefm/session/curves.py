@@ -9,10 +9,10 @@ from pathlib import Path
 from typing import Annotated
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from curvefm import registry
-from curvefm.errors import InvalidInput, NotFound
+from curvefm.errors import Conflict, InvalidInput, NotFound
 from curvefm.geometry import Mesh, check_edge_path
 
 MAX_VERTEX_ID = 2**31 - 1
@@ -32,12 +32,18 @@ class CurveSpec(BaseModel):
     """
 
     model_config = ConfigDict(extra="forbid")
-    source: list[VertexId] = Field(min_length=1)
-    target: list[VertexId] = Field(min_length=1)
+    source: list[VertexId] = Field(min_length=2, description="waypoints (at least start and end) or a path")
+    target: list[VertexId] = Field(min_length=2, description="waypoints (at least start and end) or a path")
     explicit: bool = False
-    tracer: str | None = None
-    tracer_params: dict = Field(default_factory=dict)
+    tracer: str | None = Field(None, description="the session's tracer when none is named")
+    tracer_params: dict = Field(default_factory=dict, description="parameters of the tracer named in 'tracer'")
     weight: float = Field(1.0, gt=0)
+
+    @model_validator(mode="after")
+    def _params_need_their_tracer(self) -> CurveSpec:
+        if self.tracer_params and self.tracer is None:
+            raise ValueError("tracer_params need the tracer they are for: name it in 'tracer'")
+        return self
 
 
 class CurvesFile(BaseModel):
@@ -83,7 +89,7 @@ def trace_curve(
     pieces = [plugin.run(mesh, int(a), int(b), parsed) for a, b in zip(points[:-1], points[1:], strict=True)]
     traced = np.concatenate([pieces[0]] + [p[1:] for p in pieces[1:]])
     if len(traced) < 2:
-        raise InvalidInput("the curve's start and end are the same vertex; pick two different points")
+        raise Conflict("the curve's waypoints are all the same vertex of the mesh; pick two different points")
     return traced
 
 

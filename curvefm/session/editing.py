@@ -20,7 +20,7 @@ import numpy as np
 from pydantic import BaseModel, Field
 
 from curvefm import registry
-from curvefm.errors import InvalidInput, NotFound, shown
+from curvefm.errors import NotFound, shown
 from curvefm.fmap import FunctionTransfer
 from curvefm.geometry import Mesh, texture_coordinates
 from curvefm.registry import Plugin
@@ -163,8 +163,8 @@ class SessionEditor:
     def _trace(self, record: SessionRecord, spec: CurveSpec) -> CurveRecord:
         """Trace a curve pair (no lock held). The returned record's id is a placeholder."""
         tracer = spec.tracer or record.tracer
-        if not spec.explicit:
-            self.find_plugin("tracer", tracer)
+        if spec.tracer or not spec.explicit:  # a tracer named with an explicit path is checked all the same
+            self.find_plugin("tracer", tracer).parse_params(spec.tracer_params)
         for side, ids in (("source", spec.source), ("target", spec.target)):
             if spec.explicit:
                 self.limits.check("max_path_vertices", len(ids), f"{len(ids)} vertices in the {side} path")
@@ -199,16 +199,15 @@ class SessionEditor:
 
 def source_function(mesh: Mesh, function: TransferFunction, vertices: list[int] | None = None) -> np.ndarray:
     """Per-vertex values on the source: its uv (or generated cylindrical uv), its coordinates scaled to [0, 1]
-    per axis, or the indicator of some vertices (file ids)."""
+    per axis, or the indicator of some vertices (file ids; of none: zero everywhere)."""
     if function == "uv":
         return texture_coordinates(mesh)
     if function == "xyz":
         low = mesh.vertices.min(axis=0)
         return (mesh.vertices - low) / np.maximum(np.ptp(mesh.vertices, axis=0), 1e-300)
-    if not vertices:
-        raise InvalidInput("function 'indicator' needs vertices: file ids on the source, e.g. 12,345")
     values = np.zeros(mesh.n_vertices)
-    values[mesh.internal_ids(vertices, "indicator vertex")] = 1.0
+    if vertices:
+        values[mesh.internal_ids(vertices, "indicator vertex")] = 1.0
     return values
 
 

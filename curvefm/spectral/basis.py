@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from curvefm.errors import InvalidInput
+from curvefm.errors import Conflict, InvalidInput
 
 
 @dataclass(frozen=True, eq=False)
@@ -61,6 +61,6 @@ def check_k(k: int, n_vertices: int, name: str = "") -> None:
     if not isinstance(k, int | np.integer) or k < 1:
         raise InvalidInput(f"k must be a positive integer, got {k!r}")
     if k > max_k(n_vertices):
-        raise InvalidInput(
+        raise Conflict(
             f"k = {k} is too large for mesh '{name}' with {n_vertices} vertices (at most {max_k(n_vertices)})"
         )

@@ -1,0 +1,212 @@
+"""Soak: many sessions editing curves at a steady rate against one API process, for minutes.
+
+Starts ``python -m curvefm.service`` (embedded jobs) on a free port, uploads a real pair (FAUST tr_reg_000 ->
+tr_reg_001, 6890 vertices, whose vertex ids correspond; ``--pair cat``: TOSCA cat0 -> cat1, 27894 vertices),
+computes its bases (k = 120) and opens ``--sessions`` sessions, each with one curve. Then every session edits
+``--rate`` times a second for ``--minutes``: it adds a curve (seeded random endpoints, the same ids on both
+shapes) while it holds fewer than ``--curves`` curves, and otherwise removes its oldest one. Edits are
+scheduled at fixed times (an open loop: a slow answer does not slow the offered load down, the next edit of
+that session starts as soon as it can); the load stops at the end, whatever is still scheduled.
+
+Reports the round-trip latency of every edit (p50 / p95 / p99, adds and removes apart), the same from the time
+each edit was scheduled (what a user waits for when the server falls behind), the edits sent against those
+offered, the errors (any answer but 2xx, or no answer) and the server's resident memory at the start of the
+load, in its middle and at its end (and the largest seen, sampled every few seconds). Prints JSON.
+
+Usage: ``python benchmarks/bench_soak.py [--minutes 5] [--sessions 50] [--rate 2] [--pair faust|cat]
+[--data DIR] [--log FILE]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import os
+import platform
+import tempfile
+import time
+from collections import Counter
+from datetime import date
+from pathlib import Path
+
+import httpx
+import numpy as np
+from common import shared_data, start_server
+
+PAIRS = {
+    "faust": ("faust", "tr_reg_000.off", "tr_reg_001.off"),
+    "cat": ("tosca", "cat0.off", "cat1.off"),
+}
+RSS_EVERY_S = 5.0
+
+
+def rss_mb(pid: int) -> float:
+    """Resident memory of a process (Linux ``/proc``), in MB."""
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return round(int(line.split()[1]) / 1024, 1)
+    raise RuntimeError(f"no VmRSS for process {pid}")
+
+
+async def prepare(client: httpx.AsyncClient, pair: str, k: int) -> tuple[list[str], int]:
+    """Upload the pair and compute its bases (reused when ``--data`` already has them)."""
+    folder, *names = PAIRS[pair]
+    ids = []
+    for name in names:
+        content = (shared_data() / folder / name).read_bytes()
+        shape = (await client.post("/shapes", files={"file": (name, content)})).raise_for_status().json()
+        ids.append(shape["id"])
+    for shape_id in ids:
+        job = (await client.post(f"/shapes/{shape_id}/bases", json={"k": k})).raise_for_status().json()
+        while (info := (await client.get(f"/jobs/{job['id']}")).json())["state"] not in ("finished", "failed"):
+            await asyncio.sleep(0.5)
+        if info["state"] != "finished":
+            raise SystemExit(f"basis job failed: {info['error']}")
+    return ids, shape["n_file_vertices"]
+
+
+class Session:
+    """One editing session: its id, its curves (oldest first) and the random endpoints it draws."""
+
+    def __init__(self, session_id: str, n_vertices: int, seed: int):
+        self.id, self.n_vertices = session_id, n_vertices
+        self.curves: list[str] = []
+        self.rng = np.random.default_rng(seed)
+
+    def new_curve(self) -> dict:
+        a, b = self.rng.choice(self.n_vertices, 2, replace=False).tolist()
+        return {"source": [a, b], "target": [a, b]}
+
+
+class Load:
+    """The edits of all sessions: latencies by kind, errors by status, the server's memory over time."""
+
+    def __init__(self, server_pid: int, max_curves: int):
+        self.server_pid, self.max_curves = server_pid, max_curves
+        self.latencies: dict[str, list[float]] = {"add": [], "remove": []}
+        self.from_schedule: list[float] = []
+        self.errors: Counter = Counter()
+        self.rss: list[tuple[float, float]] = []
+
+    async def edit(self, client: httpx.AsyncClient, session: Session, scheduled: float | None = None) -> None:
+        kind = "add" if len(session.curves) < self.max_curves else "remove"
+        started = time.perf_counter()
+        try:
+            if kind == "add":
+                response = await client.post(f"/sessions/{session.id}/curves", json=session.new_curve())
+            else:
+                response = await client.delete(f"/sessions/{session.id}/curves/{session.curves[0]}")
+        except httpx.HTTPError as exc:
+            self.errors[type(exc).__name__] += 1
+            return
+        answered = time.perf_counter()
+        self.latencies[kind].append(1e3 * (answered - started))
+        self.from_schedule.append(1e3 * (answered - (scheduled or started)))
+        if not response.is_success:
+            self.errors[str(response.status_code)] += 1
+        elif kind == "add":
+            session.curves.append(response.json()["curve"]["id"])
+        else:
+            session.curves.pop(0)
+
+    async def session_loop(self, client: httpx.AsyncClient, session: Session, start: float, end: float,
+                           period: float) -> None:
+        next_at = start + period * session.rng.random()  # sessions out of step, as people are
+        while next_at < end:
+            await asyncio.sleep(max(0.0, next_at - time.perf_counter()))
+            if time.perf_counter() >= end:
+                break
+            await self.edit(client, session, scheduled=next_at)
+            next_at += period
+
+    async def sample_memory(self, start: float, end: float) -> None:
+        while (now := time.perf_counter()) < end:
+            self.rss.append((now - start, rss_mb(self.server_pid)))
+            await asyncio.sleep(min(RSS_EVERY_S, max(0.0, end - now)))
+        self.rss.append((time.perf_counter() - start, rss_mb(self.server_pid)))
+
+
+def percentiles(ms: list[float]) -> dict:
+    if not ms:
+        return {"count": 0}
+    p50, p95, p99 = np.percentile(ms, [50, 95, 99])
+    return {"count": len(ms), "p50_ms": round(p50, 1), "p95_ms": round(p95, 1), "p99_ms": round(p99, 1)}
+
+
+async def soak(url: str, headers: dict[str, str], server_pid: int, args) -> dict:
+    limits = httpx.Limits(max_connections=args.sessions, max_keepalive_connections=args.sessions)
+    async with httpx.AsyncClient(base_url=url, headers=headers, timeout=60, limits=limits) as client:
+        started = time.perf_counter()
+        ids, n_vertices = await prepare(client, args.pair, args.k)
+        prepare_s = time.perf_counter() - started
+        sessions = []
+        for index in range(args.sessions):
+            body = {"source": ids[0], "target": ids[1], "k": args.k, "name": f"soak-{index}"}
+            record = (await client.post("/sessions", json=body)).raise_for_status().json()
+            sessions.append(Session(record["id"], n_vertices, seed=args.seed + index))
+        load = Load(server_pid, args.curves)
+        for session in sessions:  # the first edit builds the live session: not measured
+            await load.edit(client, session)
+        load.latencies, load.from_schedule = {"add": [], "remove": []}, []
+        start = time.perf_counter()
+        end = start + 60 * args.minutes
+        loops = [load.session_loop(client, s, start, end, 1 / args.rate) for s in sessions]
+        await asyncio.gather(load.sample_memory(start, end), *loops)
+        elapsed = time.perf_counter() - start
+    edits = load.latencies["add"] + load.latencies["remove"]
+    sent = len(edits) + sum(load.errors.values())
+    middle = min(load.rss, key=lambda sample: abs(sample[0] - elapsed / 2))
+    return {
+        "upload_and_bases_s": round(prepare_s, 1),
+        "vertices": n_vertices,
+        "edits_offered": round(args.sessions * args.rate * 60 * args.minutes),
+        "edits_sent": sent,
+        "edits_per_s": round(sent / elapsed, 1),
+        "errors": sum(load.errors.values()),
+        "errors_by_kind": dict(load.errors),
+        "latency": percentiles(edits),
+        "add": percentiles(load.latencies["add"]),
+        "remove": percentiles(load.latencies["remove"]),
+        "from_schedule": percentiles(load.from_schedule),
+        "rss_mb": {"start": load.rss[0][1], "middle": middle[1], "end": load.rss[-1][1],
+                   "max": max(mb for _, mb in load.rss)},
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--minutes", type=float, default=5.0)
+    parser.add_argument("--sessions", type=int, default=50)
+    parser.add_argument("--rate", type=float, default=2.0, help="edits per second of each session")
+    parser.add_argument("--curves", type=int, default=3, help="curves a session holds before it removes one")
+    parser.add_argument("--pair", choices=sorted(PAIRS), default="faust")
+    parser.add_argument("--k", type=int, default=120)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--data", type=Path, help="data directory (kept; reuses bases); default: a temporary one")
+    parser.add_argument("--log", type=Path, help="where the server's output goes (default: nowhere)")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory(prefix="curvefm-soak-") as scratch:
+        server, url, headers = start_server(args.data or Path(scratch), log=args.log)
+        try:
+            result = asyncio.run(soak(url, headers, server.pid, args))
+        finally:
+            server.kill()
+            server.wait()
+    folder, *names = PAIRS[args.pair]
+    report = {
+        "benchmark": "soak: curve edits from many sessions against one API process",
+        "shapes": [f"{folder}/{name}" for name in names],
+        "k": args.k,
+        "sessions": args.sessions,
+        "rate_per_session": args.rate,
+        "minutes": args.minutes,
+        **result,
+        "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
+        "date": date.today().isoformat(),
+    }
+    print(json.dumps(report, indent=2))
+
+
+if __name__ == "__main__":
+    main()

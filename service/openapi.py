@@ -1,0 +1,183 @@
+"""The published OpenAPI schema is the truth: completed with the installed plugins, and checked on every body.
+
+The request models name a plugin with a string and take its parameters as a free object, because plugins are
+installed, not declared. Here, once per process, each (plugin name, parameters) pair of a request becomes one
+variant per installed plugin: the name a constant, the parameters that plugin's own schema. A request the
+schema accepts then names an installed plugin with parameters it takes (a parameter model's checks that relate
+two fields, such as ZoomOut's ``k_final >= k_init``, are the one thing a JSON schema cannot say).
+
+JSON bodies are validated against that published schema before pydantic parses them (:class:`SchemaRoute`):
+pydantic's lax mode would take ``"2"`` for a number or ``0`` for a boolean, which the schema rejects.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+from collections.abc import Callable, Coroutine
+from dataclasses import dataclass
+from typing import Any
+
+from fastapi import FastAPI, Request, Response
+from fastapi.exceptions import RequestValidationError
+from fastapi.openapi.utils import get_openapi
+from fastapi.routing import APIRoute
+from jsonschema import Draft202012Validator, ValidationError
+
+from curvefm import registry
+
+
+@dataclass(frozen=True)
+class PluginField:
+    kind: str
+    name: str
+    """the field naming the plugin"""
+    params: str | None = None
+    """the field holding its parameters (``None``: the plugin is named with no parameters)"""
+
+
+PLUGIN_FIELDS = {
+    "BasisRequest": [PluginField("basis", "plugin", "params")],
+    "SessionCreate": [PluginField("basis", "basis_plugin", "basis_params"), PluginField("tracer", "tracer")],
+    "CurveSpec": [PluginField("tracer", "tracer", "tracer_params")],
+    "RefineRequest": [PluginField("converter", "converter", "params")],
+}
+"""Request schemas (components) -> their plugin fields."""
+
+NO_PARAMETERS = {"type": "object", "maxProperties": 0, "description": "no parameters without a plugin named"}
+
+
+def install_openapi(app: FastAPI) -> None:
+    """Make ``app.openapi()`` (``/openapi.json``, ``/docs``) publish the installed plugins' names and parameters."""
+
+    def openapi() -> dict:
+        if app.openapi_schema is None:
+            schema = get_openapi(
+                title=app.title, version=app.version, description=app.description, routes=app.routes
+            )
+            app.openapi_schema = with_plugins(schema)
+        return app.openapi_schema
+
+    app.openapi = openapi
+    app.state.body_validators = {}
+
+
+def with_plugins(schema: dict) -> dict:
+    components = schema["components"]["schemas"]
+    for name, plugin_fields in PLUGIN_FIELDS.items():
+        if name in components:
+            components[name] = plugin_variants(components[name], plugin_fields, components)
+    return schema
+
+
+def plugin_variants(model: dict, plugin_fields: list[PluginField], components: dict) -> dict:
+    """``model`` as one variant per combination of installed plugins (a plugin field without parameters
+    becomes an enum instead)."""
+    variants = [model]
+    for field in plugin_fields:
+        if field.params is None:
+            for variant in variants:
+                _name_property(variant, field, enum=registry.names(field.kind))
+        else:
+            variants = [split for variant in variants for split in _split(variant, field, components)]
+    if len(variants) == 1:
+        return variants[0]
+    common = {key: model[key] for key in ("title", "description") if key in model}
+    return {**common, "anyOf": variants}
+
+
+def _split(model: dict, field: PluginField, components: dict) -> list[dict]:
+    default = model["properties"][field.name].get("default")
+    variants = []
+    for plugin_name in registry.names(field.kind):
+        variant = copy.deepcopy(model)
+        _name_property(variant, field, enum=[plugin_name])
+        variant["properties"][field.params] = _params_schema(registry.get(field.kind, plugin_name), components)
+        if plugin_name != default:
+            variant["required"] = sorted({*variant.get("required", ()), field.name})
+        variants.append(variant)
+    if default is None:  # the name may be null or absent: then no parameters either
+        variant = copy.deepcopy(model)
+        _name_property(variant, field, enum=[None])
+        variant["properties"][field.params] = NO_PARAMETERS
+        variants.append(variant)
+    return variants
+
+
+def _name_property(model: dict, field: PluginField, enum: list) -> None:
+    current = model["properties"][field.name]
+    keep = {key: current[key] for key in ("title", "description", "default") if key in current}
+    model["properties"][field.name] = {**keep, "enum": enum}
+
+
+def _params_schema(plugin: registry.Plugin, components: dict) -> dict:
+    """The plugin's parameter schema, its ``$defs`` moved into the components (named after the plugin, so two
+    plugins' models of the same name stay apart)."""
+    params = plugin.Params.model_json_schema(ref_template=f"#/components/schemas/{plugin.name}.{{model}}")
+    for model_name, definition in params.pop("$defs", {}).items():
+        components[f"{plugin.name}.{model_name}"] = definition
+    return params
+
+
+class SchemaRoute(APIRoute):
+    """A route whose JSON body must match the published schema of its operation (422 naming the first
+    problem otherwise); the body is then parsed by its pydantic model as usual."""
+
+    def get_route_handler(self) -> Callable[[Request], Coroutine[Any, Any, Response]]:
+        handler = super().get_route_handler()
+
+        async def validated(request: Request) -> Response:
+            if request.headers.get("content-type", "").startswith("application/json"):
+                validator = body_validator(request.app, self.path_format, request.method)
+                if validator is not None:
+                    _check_body(validator, await request.body())
+            return await handler(request)
+
+        return validated
+
+
+def body_validator(app: FastAPI, path: str, method: str) -> Draft202012Validator | None:
+    """The validator of an operation's JSON body (``None``: it takes none), compiled on first use."""
+    validators = app.state.body_validators
+    key = (path, method.lower())
+    if key not in validators:
+        document = app.openapi()
+        operation = document["paths"].get(path, {}).get(key[1], {})
+        schema = operation.get("requestBody", {}).get("content", {}).get("application/json", {}).get("schema")
+        # the components ride along in the root so that "#/components/..." references resolve
+        validators[key] = schema and Draft202012Validator({**schema, "components": document["components"]})
+    return validators[key]
+
+
+def _check_body(validator: Draft202012Validator, body: bytes) -> None:
+    try:
+        instance = json.loads(body)
+    except ValueError:
+        return  # FastAPI answers malformed JSON itself
+    error = next(validator.iter_errors(instance), None)
+    if error is not None:
+        path, message = _explain(error)
+        raise RequestValidationError([{"loc": ("body", *path), "msg": message, "type": "schema"}])
+
+
+def _explain(error: ValidationError) -> tuple[list, str]:
+    """Where and what: of an error in an ``anyOf`` (the plugin variants), the problems that got furthest into
+    the body; a name no variant has lists every variant's names."""
+    while error.context:
+        depth = max(len(e.absolute_path) for e in error.context)
+        deepest = [e for e in error.context if len(e.absolute_path) == depth]
+        if all(e.validator == "enum" for e in deepest):
+            allowed = [value for e in deepest for value in e.validator_value]
+            return list(deepest[0].absolute_path), f"{deepest[0].instance!r} is not one of {allowed}"
+        error = deepest[0]
+    path = list(error.absolute_path)
+    extra = _extra_fields(error)
+    if extra:  # name the field itself, as pydantic would
+        return [*path, extra[0]], "extra field not permitted"
+    return path, error.message
+
+
+def _extra_fields(error: ValidationError) -> list[str]:
+    if error.validator != "additionalProperties" or not isinstance(error.instance, dict):
+        return []
+    return sorted(set(error.instance) - set(error.schema.get("properties", {})))
