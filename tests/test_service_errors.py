@@ -73,9 +73,9 @@ def server(module_processes, tmp_path_factory):
 
 @pytest.fixture(autouse=True)
 def store_unchanged(server, request):
-    """Rejected requests change nothing; a test that also submits a job (whose record is written) asks for
-    ``accepted_job`` and may change the job records only."""
-    ignored = "jobs" if "accepted_job" in request.fixturenames else None
+    """Rejected requests change nothing; a test that also submits a job (whose record is written, and charged to
+    the user's quotas) asks for ``accepted_job`` and may change the job records and the quota ledgers only."""
+    ignored = ("jobs", "access/usage") if "accepted_job" in request.fixturenames else ()
     before = snapshot(server.data, ignored)
     yield
     assert snapshot(server.data, ignored) == before, "a rejected request changed the data directory"
@@ -86,8 +86,8 @@ def accepted_job():
     """See ``store_unchanged``."""
 
 
-def snapshot(folder: Path, ignored: str | None = None) -> dict[str, tuple[int, int]]:
-    paths = (p for p in folder.rglob("*") if ignored is None or p.relative_to(folder).parts[0] != ignored)
+def snapshot(folder: Path, ignored: tuple[str, ...] = ()) -> dict[str, tuple[int, int]]:
+    paths = (p for p in folder.rglob("*") if not str(p.relative_to(folder)).startswith(ignored))
     return {str(p.relative_to(folder)): (p.stat().st_size, p.stat().st_mtime_ns) for p in paths}
 
 
