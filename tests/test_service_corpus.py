@@ -1,19 +1,18 @@
-"""The malformed-mesh corpus (tests/corpus/) uploaded through the API of a real server: each file is refused
+"""The malformed-mesh corpus (tests/mesh_corpus.py) uploaded through the API of a real server: each file is refused
 with the 4xx its manifest documents, in a body that matches ``ErrorBody``, and leaves the data directory as it
 was, or is accepted with the documented vertex and face counts; the server answers ``/health`` after each."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import pytest
+from mesh_corpus import MANIFEST, corpus_dir
 
 from curvefm.service.errors import STATUS
 from curvefm.service.models import ErrorBody
 
-CORPUS = Path(__file__).parent / "corpus"
-MANIFEST = json.loads((CORPUS / "manifest.json").read_text())
+CORPUS = corpus_dir()
 STATUS_OF_KIND = {cls.code: status for cls, status in STATUS.items()}
 
 

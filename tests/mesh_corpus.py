@@ -1,8 +1,8 @@
-"""Writes the malformed-mesh corpus: tests/corpus/meshes/ and its manifest (tests/corpus/manifest.json).
+"""The malformed-mesh corpus, made in code: ``corpus_dir()`` writes its files (``meshes/`` and a few side files)
+into a temporary folder once per test process, and ``MANIFEST`` says what loading each mesh must give.
 
-Every file is made here from a few bytes of text or packed numbers; nothing is copied from a data set. Run
-``python tests/corpus/make_corpus.py`` after changing a case and commit the files it writes; a test checks
-that the committed files are what this script writes.
+Every file is made here from a few bytes of text or packed numbers; nothing is copied from a data set, and
+nothing is committed: the tests build the corpus when they run.
 
 Each case is ``(file name, content, expected)``, where ``expected`` is ``reject(substring, kind)``: loading
 raises a CurvefmError of that kind whose message contains the substring, or ``accept(vertices, faces)``:
@@ -12,16 +12,15 @@ they hold: loading them must cost memory proportional to the file, not to the he
 
 from __future__ import annotations
 
+import atexit
 import base64
 import json
 import random
+import shutil
 import struct
-import sys
+import tempfile
+from functools import cache
 from pathlib import Path
-
-HERE = Path(__file__).resolve().parent
-MESHES = HERE / "meshes"
-MANIFEST = HERE / "manifest.json"
 
 TRI_V = [(0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)]
 QUAD_V = [*TRI_V, (1.0, 1.0, 0.0)]
@@ -320,23 +319,22 @@ SIDE_FILES = {  # read by the mtllib cases; not meshes, so not in the manifest
 
 
 def files() -> dict[str, bytes]:
-    """Every file the corpus holds, by path relative to tests/corpus/, the manifest included."""
-    cases = CASES
-    names = [name for name, _, _ in cases]
+    """Every file of the corpus, by path relative to the corpus folder."""
+    names = [name for name, _, _ in CASES]
     assert len(names) == len(set(names)), "duplicate case names"
-    out = {f"meshes/{name}": content for name, content, _ in cases}
-    out.update(SIDE_FILES)
-    manifest = {name: expected for name, _, expected in cases}
-    out["manifest.json"] = (json.dumps(manifest, indent=1, sort_keys=True) + "\n").encode()
-    return out
+    return {f"meshes/{name}": content for name, content, _ in CASES} | SIDE_FILES
 
 
-def main() -> None:
+MANIFEST = {name: expected for name, _, expected in CASES}
+"""The expected outcome of loading each file of ``meshes/``, by file name."""
+
+
+@cache
+def corpus_dir() -> Path:
+    """The corpus written into a fresh temporary folder (removed when the process exits)."""
+    folder = Path(tempfile.mkdtemp(prefix="curvefm-corpus-"))
+    atexit.register(shutil.rmtree, folder, ignore_errors=True)
     for relative, content in files().items():
-        (HERE / relative).parent.mkdir(parents=True, exist_ok=True)
-        (HERE / relative).write_bytes(content)
-    print(f"wrote {len(CASES)} meshes and the manifest under {HERE}", file=sys.stderr)
-
-
-if __name__ == "__main__":
-    main()
+        (folder / relative).parent.mkdir(parents=True, exist_ok=True)
+        (folder / relative).write_bytes(content)
+    return folder
