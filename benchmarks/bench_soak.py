@@ -13,7 +13,12 @@ each edit was scheduled (what a user waits for when the server falls behind), th
 offered, the errors (any answer but 2xx, or no answer) and the server's resident memory at the start of the
 load, in its middle and at its end (and the largest seen, sampled every few seconds). Prints JSON.
 
-Usage: ``python benchmarks/bench_soak.py [--minutes 5] [--sessions 50] [--rate 2] [--pair faust|cat]
+``--texture``: after each edit the session also fetches the texture carried by the new map, as the web UI does
+(``GET /sessions/{id}/transfer``): the map is solved once per revision, on that first read, so this is the load of
+people clicking in the UI; without it, the load of scripts editing curves through the API. The latencies are then
+those of the edit and its texture together.
+
+Usage: ``python benchmarks/bench_soak.py [--minutes 5] [--sessions 50] [--rate 2] [--pair faust|cat] [--texture]
 [--data DIR] [--log FILE]``
 """
 
@@ -82,8 +87,8 @@ class Session:
 class Load:
     """The edits of all sessions: latencies by kind, errors by status, the server's memory over time."""
 
-    def __init__(self, server_pid: int, max_curves: int):
-        self.server_pid, self.max_curves = server_pid, max_curves
+    def __init__(self, server_pid: int, max_curves: int, texture: bool):
+        self.server_pid, self.max_curves, self.texture = server_pid, max_curves, texture
         self.latencies: dict[str, list[float]] = {"add": [], "remove": []}
         self.from_schedule: list[float] = []
         self.errors: Counter = Counter()
@@ -97,6 +102,10 @@ class Load:
                 response = await client.post(f"/sessions/{session.id}/curves", json=session.new_curve())
             else:
                 response = await client.delete(f"/sessions/{session.id}/curves/{session.curves[0]}")
+            if self.texture and response.is_success:
+                texture = await client.get(f"/sessions/{session.id}/transfer", params={"function": "uv"})
+                if not texture.is_success:
+                    self.errors[f"transfer {texture.status_code}"] += 1
         except httpx.HTTPError as exc:
             self.errors[type(exc).__name__] += 1
             return
@@ -145,7 +154,7 @@ async def soak(url: str, headers: dict[str, str], server_pid: int, args) -> dict
             body = {"source": ids[0], "target": ids[1], "k": args.k, "name": f"soak-{index}"}
             record = (await client.post("/sessions", json=body)).raise_for_status().json()
             sessions.append(Session(record["id"], n_vertices, seed=args.seed + index))
-        load = Load(server_pid, args.curves)
+        load = Load(server_pid, args.curves, args.texture)
         for session in sessions:  # the first edit builds the live session: not measured
             await load.edit(client, session)
         load.latencies, load.from_schedule = {"add": [], "remove": []}, []
@@ -183,6 +192,7 @@ def main() -> None:
     parser.add_argument("--pair", choices=sorted(PAIRS), default="faust")
     parser.add_argument("--k", type=int, default=120)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--texture", action="store_true", help="fetch the carried texture after each edit, as the UI")
     parser.add_argument("--data", type=Path, help="data directory (kept; reuses bases); default: a temporary one")
     parser.add_argument("--log", type=Path, help="where the server's output goes (default: nowhere)")
     args = parser.parse_args()
@@ -201,6 +211,7 @@ def main() -> None:
         "sessions": args.sessions,
         "rate_per_session": args.rate,
         "minutes": args.minutes,
+        "texture_after_each_edit": args.texture,
         **result,
         "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
         "date": date.today().isoformat(),

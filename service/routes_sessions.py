@@ -129,6 +129,8 @@ FILE_IDS = r"^[0-9]{1,10}(,[0-9]{1,10})*$"  # ten digits at most: no id beyond i
 TRANSFER_HEADERS = {
     "X-Shape": {"description": "n,d: rows (target vertices) and values per row", "schema": {"type": "string"}},
     "X-Revision": {"description": "the session revision the map had", "schema": {"type": "string"}},
+    "X-Solve-Ms": {"description": "milliseconds this request spent solving the map (0: already solved)",
+                   "schema": {"type": "string"}},
 }
 
 
@@ -153,12 +155,14 @@ def get_transfer(
 ) -> Response:
     """A function on the source carried to the target through the current map: float32 little-endian,
     ``n x d`` row-major with one row per target vertex in internal order (as ``GET /shapes/{id}/mesh``).
-    Headers: ``X-Shape: n,d`` and ``X-Revision``. ``uv``: the source's texture coordinates (or generated
+    Headers: ``X-Shape: n,d``, ``X-Revision`` and ``X-Solve-Ms`` (the map is solved on its first read after
+    an edit). ``uv``: the source's texture coordinates (or generated
     cylindrical ones); ``xyz``: source coordinates scaled to [0, 1] per axis; ``indicator``: 1 on
     ``vertices``, 0 elsewhere."""
     session_for(services, user, session_id, "read")
-    values, revision = services.sessions.transfer(session_id, function, _parse_ids(vertices))
-    headers = {"X-Shape": f"{values.shape[0]},{values.shape[1]}", "X-Revision": str(revision)}
+    values, revision, solve_ms = services.sessions.transfer(session_id, function, _parse_ids(vertices))
+    headers = {"X-Shape": f"{values.shape[0]},{values.shape[1]}", "X-Revision": str(revision),
+               "X-Solve-Ms": f"{solve_ms:.3f}"}
     return Response(values.astype("<f4").tobytes(), media_type="application/octet-stream", headers=headers)
 
 

@@ -95,7 +95,7 @@ def test_the_live_cache_is_bounded_and_rebuilds_evicted_sessions_from_disk(store
     assert editor.live.peek(first.id) is None
     _, summary = editor.add_curve(first.id, curve(2))
     assert (summary.n_curves, summary.revision) == (2, 2)
-    values, revision = editor.transfer(first.id, "xyz")
+    values, revision, _ = editor.transfer(first.id, "xyz")
     assert values.shape == (store.get_mesh(first.target).n_vertices, 3) and revision == 2
     editor.live.close()
 

@@ -88,19 +88,25 @@ def test_incremental_edits_equal_a_fresh_solve(pair):
     np.testing.assert_allclose(solver.C_NM, fresh.C_NM, atol=1e-10)
 
 
-def test_interactive_solver_defers_the_reverse_map_and_gives_the_same_maps(pair):
+def test_interactive_solver_solves_each_map_on_first_read_and_gives_the_same_maps(pair):
     eager, _, paths = solver_with(pair, n_curves=2)
     lazy, ids, _ = solver_with(pair, n_curves=2, interactive=True)
-    assert lazy.reverse_pending and not eager.reverse_pending  # the interactive edit solved only C_MN
+    assert lazy.pending == {"MN", "NM"} and not eager.pending  # the interactive edits solved nothing yet
     np.testing.assert_allclose(lazy.C_MN, eager.C_MN, atol=1e-12)
+    assert lazy.pending == {"NM"} and lazy.last_solve_ms > 0
     np.testing.assert_allclose(lazy.C_NM, eager.C_NM, atol=1e-12)
-    assert not lazy.reverse_pending
-    for solver in (eager, lazy):  # an edit after a read invalidates the reverse map again
+    assert not lazy.pending
+    for solver in (eager, lazy):  # an edit after a read makes both maps stale again
         solver.add_curve(paths[0][::-1], paths[0][::-1], weight=3.0)
+    assert lazy.pending == {"MN", "NM"}
     np.testing.assert_allclose(lazy.C_NM, eager.C_NM, atol=1e-12)
+    np.testing.assert_allclose(lazy.C_MN, eager.C_MN, atol=1e-12)
     lazy.remove_curve(ids[0])
     eager.remove_curve("c1")
     np.testing.assert_allclose(lazy.C_NM, eager.C_NM, atol=1e-12)
+    for curve_id in list(lazy.curves):
+        lazy.remove_curve(curve_id)
+    assert not lazy.pending and not lazy.C_MN.any()  # no curves: zero maps, nothing to solve
 
 
 def test_invariant_to_the_number_of_curves_and_weights(pair):

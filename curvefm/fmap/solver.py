@@ -20,11 +20,12 @@ editing or removing a curve adds or subtracts one curve's products before the k 
 products are computed again from the paths when it is removed or replaced (well under a millisecond at k = 120), so a
 stored curve costs a few bytes per path vertex instead of three k x k matrices (346 kB at k = 120).
 ``C_NM`` is the same problem with the roles of M and N exchanged; both are solved side by side on two threads,
-or, for an interactive server, ``C_MN`` alone on the calling thread and ``C_NM`` when first read.
+or, for a server, each when first read after an edit (``interactive``).
 """
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import Executor, ThreadPoolExecutor
 from dataclasses import dataclass
@@ -71,9 +72,11 @@ class CurveMapSolver:
     Curve ids: give your own (``curve_id=``) or let the solver name the curve ``c1``, ``c2``, ... (an automatic
     id skips those in use; an explicit id in use is a conflict). Removed ids are not handed out again.
 
-    ``interactive=True``: an edit solves ``C_MN`` on the calling thread only and ``C_NM`` is solved when first
-    read. The interactive loop shows the texture carried by ``C_MN``; a server sharing its cores between
-    sessions (or with a browser) edits faster this way than with two threads per edit.
+    ``interactive=True``: an edit only updates the curve terms; each map is solved on the calling thread when
+    first read after it (once per edit, however often it is read; :attr:`last_solve_ms` says how long that
+    took). The web UI reads ``C_MN`` (the texture) after every edit and ``C_NM`` rarely; a script adding ten
+    curves before reading pays for one solve, not ten; a server sharing its cores between many sessions
+    spends them on the maps someone looks at.
 
     ``executor``: where the reverse map is solved while the calling thread solves ``C_MN`` (not interactive).
     Without one, the solver starts its own single thread when first needed and stops it on :meth:`close`
@@ -103,9 +106,9 @@ class CurveMapSolver:
         self._sums = np.zeros((3, k, k))  # sum over curves of weight * _products(curve)
         self._removed_weight = 0.0  # subtracted from _sums since they were last summed exactly
         self._next_number = 1  # of the next automatic id, c<number>
-        self.C_MN = np.zeros((k, k))
-        self._C_NM = np.zeros((k, k))
-        self._reverse_system: tuple[np.ndarray, np.ndarray] | None = None  # (G_M, B) while C_NM is stale
+        self._C_MN, self._C_NM = np.zeros((k, k)), np.zeros((k, k))
+        self._stale: set[str] = set()  # the maps ("MN", "NM") not yet solved for the current curves
+        self.last_solve_ms = 0.0
         self._executor, self._owns_executor = executor, False
 
     # -- editing ----------------------------------------------------------------------------------------
@@ -162,8 +165,8 @@ class CurveMapSolver:
         self._apply(wanted, sums, removed)
 
     def _apply(self, curves: dict[str, CurveTerm], sums: np.ndarray, removed_weight: float) -> None:
-        """Make ``curves`` (with the sums of their products) the solver's and solve; if the solve fails, the
-        previous curves and maps stay."""
+        """Make ``curves`` (with the sums of their products) the solver's and solve (an interactive solver: when
+        read); if the solve fails, the previous curves and maps stay."""
         previous = self.curves, self._sums, self._removed_weight
         self.curves, self._sums, self._removed_weight = curves, sums, removed_weight
         try:
@@ -218,16 +221,16 @@ class CurveMapSolver:
     def _solve(self) -> None:
         if not self.curves:
             self._sums, self._removed_weight = np.zeros_like(self._sums), 0.0  # exact zeros, no rounding left
-            self.C_MN, self._C_NM = np.zeros((self.k, self.k)), np.zeros((self.k, self.k))
-            self._reverse_system = None
-            return
-        G_M, G_N, B = self.normal_equations()
-        if self.interactive:
-            self.C_MN = solve_columns(G_N, B, self.lam_N, self.lam_M, self.alpha)
-            self._reverse_system = (G_M, B)
+            self._C_MN, self._C_NM = np.zeros((self.k, self.k)), np.zeros((self.k, self.k))
+            self._stale = set()
+        elif self.interactive:
+            self._stale = {"MN", "NM"}
         else:
+            G_M, G_N, B = self.normal_equations()
             executor = self._solve_executor(B.size)
-            self.C_MN, self._C_NM = solve_both(G_N, G_M, B, self.lam_N, self.lam_M, self.alpha, executor=executor)
+            started = time.perf_counter()
+            self._C_MN, self._C_NM = solve_both(G_N, G_M, B, self.lam_N, self.lam_M, self.alpha, executor=executor)
+            self._stale, self.last_solve_ms = set(), _ms_since(started)
 
     def _solve_executor(self, size: int) -> Executor | None:
         """The executor for the reverse map, started on first need when the solver owns it."""
@@ -237,18 +240,33 @@ class CurveMapSolver:
         return self._executor
 
     @property
-    def reverse_pending(self) -> bool:
-        """Whether ``C_NM`` is still to be solved for the last edit (interactive solvers defer it to its first read)."""
-        return self._reverse_system is not None
+    def pending(self) -> frozenset[str]:
+        """The maps (``"MN"``, ``"NM"``) an interactive solver has still to solve for its current curves."""
+        return frozenset(self._stale)
+
+    @property
+    def C_MN(self) -> np.ndarray:
+        """The map from M to N (with ``interactive``, solved on first use after an edit)."""
+        if "MN" in self._stale:
+            G_M, G_N, B = self.normal_equations()
+            self._C_MN = self._solve_one(G_N, B, self.lam_N, self.lam_M)
+            self._stale.discard("MN")
+        return self._C_MN
 
     @property
     def C_NM(self) -> np.ndarray:
         """The reverse map (with ``interactive``, solved on first use after an edit)."""
-        if self._reverse_system is not None:
-            G_M, B = self._reverse_system
-            self._C_NM = solve_columns(G_M, B.T, self.lam_M, self.lam_N, self.alpha)
-            self._reverse_system = None
+        if "NM" in self._stale:
+            G_M, G_N, B = self.normal_equations()
+            self._C_NM = self._solve_one(G_M, B.T, self.lam_M, self.lam_N)
+            self._stale.discard("NM")
         return self._C_NM
+
+    def _solve_one(self, G: np.ndarray, B: np.ndarray, lam_rows: np.ndarray, lam_cols: np.ndarray) -> np.ndarray:
+        started = time.perf_counter()
+        C = solve_columns(G, B, lam_rows, lam_cols, self.alpha)
+        self.last_solve_ms = _ms_since(started)
+        return C
 
     def energy(self, C_MN: np.ndarray) -> float:
         """E(C_MN) up to the constant sum_l w~_l ||PhiBar_l||^2 / s (so it may be negative)."""
@@ -268,6 +286,10 @@ class CurveMapSolver:
 
     def __exit__(self, *exc_info) -> None:
         self.close()
+
+
+def _ms_since(started: float) -> float:
+    return round((time.perf_counter() - started) * 1000, 3)
 
 
 def _compact(path, n_vertices: int) -> np.ndarray:

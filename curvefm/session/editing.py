@@ -41,7 +41,10 @@ class MapSummary(BaseModel):
     revision: int = Field(description="increases with every change of the session")
     n_curves: int
     k: int
-    solve_ms: float = Field(description="time to update both maps for this edit")
+    update_ms: float = Field(
+        description="time this edit spent updating the maps' curve terms; each map is solved when first read "
+        "after the edit (the transfer's X-Solve-Ms header says how long that took)"
+    )
 
 
 class SessionEditor:
@@ -92,9 +95,9 @@ class SessionEditor:
             curve = traced.model_copy(update={"id": f"c{live.record.next_curve}"})
             started = time.perf_counter()
             live.solver.add_curve(*internal_paths(live.pair, curve), weight=spec.weight, curve_id=curve.id)
-            solve_ms = _ms_since(started)
+            update_ms = _ms_since(started)
             self._commit(live, curves=[*live.record.curves, curve], next_curve=live.record.next_curve + 1)
-            return curve, _summary(live, solve_ms)
+            return curve, _summary(live, update_ms)
 
     def replace_curve(self, session_id: str, curve_id: str, spec: CurveSpec) -> tuple[CurveRecord, MapSummary]:
         record = self.record(session_id)
@@ -105,18 +108,18 @@ class SessionEditor:
             curve = traced.model_copy(update={"id": curve_id})
             started = time.perf_counter()
             live.solver.replace_curve(curve_id, *internal_paths(live.pair, curve), weight=spec.weight)
-            solve_ms = _ms_since(started)
+            update_ms = _ms_since(started)
             self._commit(live, curves=[curve if c.id == curve_id else c for c in live.record.curves])
-            return curve, _summary(live, solve_ms)
+            return curve, _summary(live, update_ms)
 
     def remove_curve(self, session_id: str, curve_id: str) -> MapSummary:
         with self.live.editing(session_id) as live:
             _require_curve(live.record, curve_id)
             started = time.perf_counter()
             live.solver.remove_curve(curve_id)
-            solve_ms = _ms_since(started)
+            update_ms = _ms_since(started)
             self._commit(live, curves=[c for c in live.record.curves if c.id != curve_id])
-            return _summary(live, solve_ms)
+            return _summary(live, update_ms)
 
     def share(self, session_id: str, sharing: Sharing) -> SessionRecord:
         """Change who may use the session. Only the record is written: a live session takes the new revision up
@@ -138,15 +141,18 @@ class SessionEditor:
 
     def transfer(
         self, session_id: str, function: TransferFunction, vertices: list[int] | None = None
-    ) -> tuple[np.ndarray, int]:
+    ) -> tuple[np.ndarray, int, float]:
         """``function`` on the source carried to the target: float32 rows per target vertex (internal
-        order), and the session revision it reflects."""
+        order), the session revision it reflects, and the milliseconds spent solving the map for it (0 when
+        an earlier read had solved it)."""
         with self.live.using(session_id) as live:
+            solving = "MN" in live.solver.pending
             C_MN, revision = live.solver.C_MN, live.record.revision
+            solve_ms = live.solver.last_solve_ms if solving else 0.0
         key = (function, tuple(vertices or ()))
         carried = live.transfers.get(key, lambda: _projected(live, function, vertices))
         values = carried.apply(C_MN)
-        return np.ascontiguousarray(values.reshape(len(values), -1), dtype=np.float32), revision
+        return np.ascontiguousarray(values.reshape(len(values), -1), dtype=np.float32), revision, solve_ms
 
     # -- internals ----------------------------------------------------------------------------------------
     def _check_shapes(self, record: SessionRecord) -> None:
@@ -222,9 +228,9 @@ def _require_curve(record: SessionRecord, curve_id: str) -> None:
         raise NotFound(f"no curve '{shown(curve_id)}' in session {record.id}; its curves: {ids}")
 
 
-def _summary(live: LiveSession, solve_ms: float) -> MapSummary:
+def _summary(live: LiveSession, update_ms: float) -> MapSummary:
     record = live.record
-    return MapSummary(revision=record.revision, n_curves=len(record.curves), k=record.k, solve_ms=solve_ms)
+    return MapSummary(revision=record.revision, n_curves=len(record.curves), k=record.k, update_ms=update_ms)
 
 
 def _ms_since(started: float) -> float:

@@ -81,13 +81,15 @@ export const api = {
     request("PUT", `/sessions/${enc(id)}/curves/${enc(curveId)}`, { json: spec }),
   deleteCurve: (id, curveId) => request("DELETE", `/sessions/${enc(id)}/curves/${enc(curveId)}`),
   map: (id) => request("GET", `/sessions/${enc(id)}/map`),
-  /** function: uv | xyz | indicator (with vertices: source file ids). Resolves to { values, columns, revision }. */
+  /** function: uv | xyz | indicator (with vertices: source file ids). Resolves to { values, columns, revision,
+   * solveMs } (solveMs: the time the service spent solving the map for this read; 0 when already solved). */
   async transfer(id, fn, vertices = null) {
     const query = new URLSearchParams({ function: fn });
     if (vertices) query.set("vertices", vertices.join(","));
     const { buffer, headers } = await request("GET", `/sessions/${enc(id)}/transfer?${query}`, { as: "binary" });
     const columns = Number(headers.get("X-Shape").split(",")[1]);
-    return { values: new Float32Array(buffer), columns, revision: Number(headers.get("X-Revision")) };
+    const revision = Number(headers.get("X-Revision"));
+    return { values: new Float32Array(buffer), columns, revision, solveMs: Number(headers.get("X-Solve-Ms")) };
   },
   refine: (id, converter, params) => request("POST", `/sessions/${enc(id)}/refine`, { json: { converter, params } }),
 

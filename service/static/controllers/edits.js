@@ -7,7 +7,7 @@ import { report } from "../views/messages.js";
 import { showMapChoice, showStatus } from "../views/page.js";
 import { paint, viewports } from "../views/viewports.js";
 import { resync } from "./connection.js";
-import { carriedRows } from "./feedback.js";
+import { carriedFunction } from "./feedback.js";
 
 /** The session's edits: call the service, then keep the local record in step with its answer. */
 export const edits = {
@@ -42,12 +42,12 @@ export async function runEdit(clickTime, kind, failure, perform) {
       setMap("functional"); // the refined map belongs to an older revision
       showMapChoice();
     }
-    const rows = await carriedRows();
+    const carried = await carriedFunction();
     const fetchedAt = performance.now();
     showCurves();
     showPending();
-    if (rows === null) return; // a newer edit's texture is on its way
-    paint("target", state.fn, rows);
+    if (carried === null) return; // a newer edit's texture is on its way
+    paint("target", state.fn, carried.rows);
     const drawnAt = await viewports.target.drawn();
     recordSample({
       kind,
@@ -56,7 +56,7 @@ export async function runEdit(clickTime, kind, failure, perform) {
       editMs: editedAt - clickTime,
       transferMs: fetchedAt - editedAt,
       drawMs: drawnAt - fetchedAt,
-      solveMs: edit.map.solve_ms,
+      solveMs: carried.solveMs,
     });
   } catch (error) {
     showPending();

@@ -12,13 +12,23 @@ const COLUMNS = { uv: 2, xyz: 3, indicator: 1 };
 /** The chosen function carried to the target (rows per target vertex), through the live map from the service
  * or through the refined pointwise map; null when a newer request started meanwhile (its answer wins). */
 export async function carriedRows() {
+  const carried = await carriedFunction();
+  return carried && carried.rows;
+}
+
+/** carriedRows with the time the service spent solving the map for it: { rows, solveMs } or null. */
+export async function carriedFunction() {
   const ticket = nextTransferTicket();
   const { fn } = state;
-  if (fn === "indicator" && !state.region) return new Float32Array(state.shapes.target.mesh.nVertices);
-  if (state.map === "pointwise") return pullBack(sourceValues(fn), COLUMNS[fn], state.pointwise.p2p);
+  if (fn === "indicator" && !state.region) {
+    return { rows: new Float32Array(state.shapes.target.mesh.nVertices), solveMs: 0 };
+  }
+  if (state.map === "pointwise") {
+    return { rows: pullBack(sourceValues(fn), COLUMNS[fn], state.pointwise.p2p), solveMs: 0 };
+  }
   const vertices = fn === "indicator" ? state.region.fileIds : null;
-  const { values } = await api.transfer(state.session.id, fn, vertices);
-  return ticket === state.transferTicket ? values : null;
+  const { values, solveMs } = await api.transfer(state.session.id, fn, vertices);
+  return ticket === state.transferTicket ? { rows: values, solveMs } : null;
 }
 
 /** Paint the source and the carried function on the target; with the click's time, record how long it took
