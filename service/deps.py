@@ -56,7 +56,7 @@ def start_services(settings: Settings) -> Services:
         settings.embedded_workers,
         settings.job_ttl_s,
     )
-    records = SessionStore(store.root)
+    records = SessionStore(store.root, lock_timeout_s=settings.session_lock_timeout_s)
     live = LiveSessions(store, records, size=settings.live_sessions)
     # require_plugin's errors list the installed plugins
     sessions = SessionEditor(records, live, find_plugin=require_plugin, limits=settings.session_limits)

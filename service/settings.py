@@ -14,7 +14,7 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 from curvefm.errors import InvalidInput
-from curvefm.session import SessionLimits
+from curvefm.session import DEFAULT_LOCK_TIMEOUT_S, SessionLimits
 from curvefm.store import default_data_dir
 
 DEFAULT_MAX_UPLOAD_BYTES = 200 * 1024 * 1024
@@ -42,6 +42,8 @@ class Settings:
     job_retries: int = 1
     """How often a job whose worker died is run again before it is marked failed (RQ mode)."""
     embedded_workers: int = 2
+    session_lock_timeout_s: float = DEFAULT_LOCK_TIMEOUT_S
+    """How long a request waits for a session that another request or process is editing before a 503."""
     live_sessions: int = 64
     """Sessions kept live (solver built) in memory; more active sessions than this are rebuilt from disk on
     every edit, which costs tens of milliseconds each."""
@@ -129,6 +131,7 @@ ENV: dict[str, tuple[str, Callable[[str], object]]] = {
     "queue_prefix": ("CURVEFM_QUEUE_PREFIX", str),
     "job_retries": ("CURVEFM_JOB_RETRIES", _non_negative(int)),
     "live_sessions": ("CURVEFM_LIVE_SESSIONS", _non_negative(int)),
+    "session_lock_timeout_s": ("CURVEFM_SESSION_LOCK_TIMEOUT", _non_negative(float)),
     "allowed_hosts": ("CURVEFM_ALLOWED_HOSTS", host_list),
     "quota_bytes": ("CURVEFM_QUOTA_BYTES", _non_negative(int)),
     "quota_sessions": ("CURVEFM_QUOTA_SESSIONS", _non_negative(int)),

@@ -4,7 +4,10 @@ unique and no acknowledged edit is lost."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import threading
+import time
 
 import httpx
 import numpy as np
@@ -105,3 +108,36 @@ def test_a_process_brings_a_session_another_process_changed_up_to_date(replicas)
     C_second, revision_second = map_of(second, session)
     assert revision_first == revision_second == record["revision"] == 5
     np.testing.assert_allclose(C_first, C_second, atol=1e-9 * np.abs(C_second).max())
+
+
+HOLD_LOCK = """
+import fcntl, os, sys, time
+descriptor = os.open(sys.argv[1], os.O_RDWR | os.O_CREAT, 0o600)
+fcntl.flock(descriptor, fcntl.LOCK_EX)
+print("held", flush=True)
+sys.stdin.read()  # until the test closes our stdin
+"""
+
+
+def test_a_session_held_by_a_stuck_process_answers_503_naming_the_limit_then_recovers(replicas, module_processes,
+                                                                                    tmp_path):
+    first, _ = replicas
+    impatient = module_processes.api(first.data_dir, env={"CURVEFM_SESSION_LOCK_TIMEOUT": "0.5"})
+    session = new_session(replicas)
+    lock_file = first.data_dir / "sessions" / ".locks" / f"{session}.lock"
+    holder = subprocess.Popen([sys.executable, "-c", HOLD_LOCK, str(lock_file)], stdin=subprocess.PIPE,
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        started = time.monotonic()
+        busy = impatient.client.post(f"/sessions/{session}/curves", json={"source": [1, 900], "target": [1, 900]})
+        assert busy.status_code == 503, busy.text
+        assert busy.json()["error"] == "unavailable" and "CURVEFM_SESSION_LOCK_TIMEOUT" in busy.json()["detail"]
+        assert busy.headers["Retry-After"] and time.monotonic() - started < 10
+        assert impatient.client.get("/health").status_code == 200
+        assert impatient.client.get(f"/sessions/{session}").json()["curves"] == []  # nothing half-written
+    finally:
+        holder.stdin.close()
+        holder.wait(timeout=30)
+    edit = add(impatient, session, 1, 900)
+    assert edit["map"]["n_curves"] == 1

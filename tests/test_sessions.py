@@ -16,6 +16,7 @@ from curvefm.session import (
     CurveSpec,
     LiveSessions,
     MissingBasis,
+    SessionBusy,
     SessionCreate,
     SessionEditor,
     SessionRecord,
@@ -106,6 +107,28 @@ def test_the_lock_table_does_not_grow_with_the_ids_asked_for(store):
     assert len(locks) == LOCK_STRIPES
     assert live.lock("abc") is live.lock("abc")
     live.close()
+
+
+def test_a_session_held_too_long_by_another_thread_is_busy_and_the_edit_changes_nothing(store):
+    records = SessionStore(store.root, lock_timeout_s=0.2)
+    editor = SessionEditor(records, LiveSessions(store, records))
+    session = new_session(editor, store)
+    with editor.live.lock(session.id):  # another request's edit that does not finish
+        waiter = threading.Thread(target=lambda: outcome.append(_attempt(editor, session.id)))
+        outcome: list = []
+        waiter.start()
+        waiter.join(timeout=10)
+    assert isinstance(outcome[0], SessionBusy) and "CURVEFM_SESSION_LOCK_TIMEOUT" in outcome[0].message
+    assert records.read(session.id).curves == []
+    assert editor.add_curve(session.id, curve(0))[1].n_curves == 1  # released: editing goes on
+    editor.live.close()
+
+
+def _attempt(editor, session_id):
+    try:
+        return editor.add_curve(session_id, curve(0))
+    except SessionBusy as busy:
+        return busy
 
 
 def test_missing_things_are_named_without_saying_how_to_get_them(store):

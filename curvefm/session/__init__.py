@@ -49,10 +49,11 @@ from curvefm.session.record import (
     Sharing,
     VertexPath,
 )
-from curvefm.session.record_store import SessionStore, UnknownSession
+from curvefm.session.record_store import DEFAULT_LOCK_TIMEOUT_S, SessionBusy, SessionStore, UnknownSession
 from curvefm.spectral import ShapePair  # defined below the maps that use it; the session's pair is the same type
 
 __all__ = [
+    "DEFAULT_LOCK_TIMEOUT_S",
     "MAX_VERTEX_ID",
     "SHARING_DESCRIPTION",
     "Alpha",
@@ -70,6 +71,7 @@ __all__ = [
     "SessionEditor",
     "SessionLimits",
     "SessionRecord",
+    "SessionBusy",
     "SessionStore",
     "ShapePair",
     "Sharing",

@@ -124,12 +124,12 @@ class SessionEditor:
     def share(self, session_id: str, sharing: Sharing) -> SessionRecord:
         """Change who may use the session. Only the record is written: a live session takes the new revision up
         on its next use, as after another process's edit."""
-        with self.live.lock(session_id), self.records.locked(session_id):
+        with self.live.locked(session_id), self.records.locked(session_id):
             return self.records.write(self.records.read(session_id).model_copy(update={"sharing": sharing}))
 
     def delete(self, session_id: str) -> list[str]:
         """Delete the session; returns the ids of the refinement jobs run from it."""
-        with self.live.lock(session_id), self.records.locked(session_id):
+        with self.live.locked(session_id), self.records.locked(session_id):
             self.live.drop(session_id)
             return self.records.delete(session_id)
 

@@ -30,7 +30,7 @@ from curvefm.fmap import CurveMapSolver, FunctionTransfer
 from curvefm.geometry import Mesh
 from curvefm.session.pair import BasisNeed, ShapePair, basis_needs, build_solver, internal_paths, load_basis
 from curvefm.session.record import SessionRecord
-from curvefm.session.record_store import SessionStore
+from curvefm.session.record_store import SessionBusy, SessionStore
 from curvefm.spectral import Basis
 from curvefm.store import Store, params_key
 
@@ -69,17 +69,28 @@ class LiveSessions:
         return self._locks[zlib.crc32(session_id.encode()) % len(self._locks)]
 
     @contextmanager
+    def locked(self, session_id: str) -> Iterator[None]:
+        """Hold the session's lock, waiting at most the records' ``lock_timeout_s`` (then :class:`SessionBusy`)."""
+        lock = self.lock(session_id)
+        if not lock.acquire(timeout=self.records.lock_timeout_s):
+            raise SessionBusy(shown(session_id), self.records.lock_timeout_s)
+        try:
+            yield
+        finally:
+            lock.release()
+
+    @contextmanager
     def editing(self, session_id: str) -> Iterator[LiveSession]:
         """The live session, up to date with its record, held for an edit: against this process's other threads
         (the session's lock) and against other processes (the record's file lock) until the edit is written."""
-        with self.lock(session_id), self.records.locked(session_id):
+        with self.locked(session_id), self.records.locked(session_id):
             yield self._current(session_id)
 
     @contextmanager
     def using(self, session_id: str) -> Iterator[LiveSession]:
         """The live session, up to date with its record, held against this process's other threads (reading
         needs no file lock: a record is replaced whole)."""
-        with self.lock(session_id):
+        with self.locked(session_id):
             yield self._current(session_id)
 
     def prepare(self, session_id: str) -> None:

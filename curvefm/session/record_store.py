@@ -23,10 +23,11 @@ from pathlib import Path
 
 from pydantic import BaseModel
 
-from curvefm.errors import Conflict, InvalidInput, NotFound, shown
+from curvefm.errors import Conflict, InvalidInput, NotFound, Unavailable, shown
 from curvefm.session.record import SessionRecord
 from curvefm.store import atomic_write
 
+DEFAULT_LOCK_TIMEOUT_S = 30.0
 _SESSION_ID = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
 
 
@@ -42,9 +43,23 @@ class UnknownSession(NotFound):
         super().__init__(f"no session with id '{shown(session_id)}'")
 
 
+class SessionBusy(Unavailable):
+    """A session's lock was held by another request (or process) for longer than the configured wait."""
+
+    def __init__(self, session_id: str, timeout_s: float):
+        super().__init__(
+            f"session {session_id} is busy: another request held it for more than {timeout_s:g} s "
+            f"(session_lock_timeout; set CURVEFM_SESSION_LOCK_TIMEOUT to change it); try again"
+        )
+
+
 class SessionStore:
-    def __init__(self, data_dir: str | Path):
+    """``lock_timeout_s``: how long a request waits for a session another request (or process) holds before
+    :class:`SessionBusy`; a stuck holder then costs each waiter that long, not a thread forever."""
+
+    def __init__(self, data_dir: str | Path, lock_timeout_s: float = DEFAULT_LOCK_TIMEOUT_S):
         self.folder = Path(data_dir) / "sessions"
+        self.lock_timeout_s = lock_timeout_s
 
     def exists(self, session_id: str) -> bool:
         return well_formed(session_id) and self._path(session_id).is_file()
@@ -84,10 +99,23 @@ class SessionStore:
         folder.mkdir(parents=True, exist_ok=True)
         descriptor = os.open(folder / f"{session_id}.lock", os.O_RDWR | os.O_CREAT, 0o600)
         try:
-            fcntl.flock(descriptor, fcntl.LOCK_EX)
+            self._flock(descriptor, session_id)
             yield
         finally:
             os.close(descriptor)  # releases the lock
+
+    def _flock(self, descriptor: int, session_id: str) -> None:
+        """An exclusive flock, polled (flock itself cannot time out) with waits growing from 1 to 50 ms."""
+        deadline, pause = time.monotonic() + self.lock_timeout_s, 0.001
+        while True:
+            try:
+                fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                return
+            except BlockingIOError:
+                if time.monotonic() >= deadline:
+                    raise SessionBusy(session_id, self.lock_timeout_s) from None
+                time.sleep(pause)
+                pause = min(2 * pause, 0.05)
 
     def delete(self, session_id: str) -> list[str]:
         """Remove the record; returns the ids of the refinement jobs run from it (their results are the
