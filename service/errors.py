@@ -87,7 +87,8 @@ DESCRIPTIONS = {
     422: "the request does not match this schema (fields names each problem)",
     429: "more requests, sessions or concurrent jobs than a configured limit allows; Retry-After when it passes",
     500: "the server's failure, not the request's (error_id files the details in the server log)",
-    503: "a service the request needs is down (Redis); Retry-After says when to try again",
+    503: "a service the request needs is down (Redis), or the session stayed busy with another request longer "
+    "than CURVEFM_SESSION_LOCK_TIMEOUT; Retry-After says when to try again",
 }
 
 

@@ -26,8 +26,8 @@ from curvefm.service.permissions import may_read, session_for
 from curvefm.session import CurveSpec, SessionCreate, SessionRecord, TransferFunction
 from curvefm.spectral import check_k
 
-router = APIRouter(
-    tags=["sessions"], route_class=SchemaRoute, dependencies=AUTHENTICATED, responses=error_responses(401, 403)
+router = APIRouter(  # 503: a session busy for longer than CURVEFM_SESSION_LOCK_TIMEOUT
+    tags=["sessions"], route_class=SchemaRoute, dependencies=AUTHENTICATED, responses=error_responses(401, 403, 503)
 )
 ERRORS = error_responses(400, 404, 409, 413, 422)
 QUOTA_ERRORS = error_responses(400, 404, 409, 413, 422, 429)
