@@ -177,4 +177,11 @@ def serve_main(host: str = LOOPBACK_NAMES[1], port: int = 8000, log_level: str =
         check_redis(settings.redis_url)  # a wrong password is one line (exit 2), not a traceback at startup
     print(login_instructions(UserStore(settings.data_dir), host, port), flush=True)
     app = create_app(settings)
-    uvicorn.run(app, host=host, port=port, log_level=log_level, log_config=log_config(log_level))
+    uvicorn.run(
+        app,
+        host=host,
+        port=port,
+        log_level=log_level,
+        log_config=log_config(log_level),
+        timeout_keep_alive=settings.keep_alive_s,
+    )

@@ -66,6 +66,11 @@ class Settings:
     """How often the API looks for expired jobs and result files."""
     login_ttl_s: float = DEFAULT_LOGIN_TTL_S
     """How long a login cookie of the web page stays valid (a token rotation or removal ends it sooner)."""
+    keep_alive_s: float = 75.0
+    """How long an idle HTTP connection stays open. Longer than the idle timeout of clients and proxies (httpx
+    5 s, Caddy 2 min is the exception: set it above that behind one), so that they close idle connections
+    first: when the server closes one just as a request goes out on it, that request fails (the 5 s uvicorn
+    default dropped requests under load in ``benchmarks/bench_soak.py``)."""
 
     @classmethod
     def from_env(cls, bind_host: str = LOOPBACK_NAMES[1], **overrides) -> Settings:
@@ -141,6 +146,7 @@ ENV: dict[str, tuple[str, Callable[[str], object]]] = {
     "job_ttl_s": ("CURVEFM_JOB_TTL", _non_negative(float)),
     "expiry_interval_s": ("CURVEFM_EXPIRY_INTERVAL", _non_negative(float)),
     "login_ttl_s": ("CURVEFM_LOGIN_TTL", _non_negative(float)),
+    "keep_alive_s": ("CURVEFM_KEEP_ALIVE", _non_negative(float)),
 }
 """Setting -> (environment variable, parser), for the settings that are not request limits (:data:`LIMITS`)."""
 

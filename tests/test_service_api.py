@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import json
+import socket
 import struct
+import time
 
 import numpy as np
 import pytest
@@ -91,3 +93,15 @@ def test_transfers_are_float32_rows_per_target_vertex(server, function, columns)
     assert response.headers["X-Shape"] == f"4098,{columns}"
     values = np.frombuffer(response.content, "<f4").reshape(4098, columns)
     assert np.isfinite(values).all() and values.std() > 0
+
+
+def test_an_idle_connection_stays_open_longer_than_clients_keep_theirs(server):
+    """A server that closes idle connections first races the next request on them (a dropped request):
+    it must outlast an httpx client's 5 s pool expiry."""
+    with socket.create_connection(("127.0.0.1", int(server.url.rsplit(":", 1)[1])), timeout=10) as connection:
+        request = b"GET /health HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"
+        connection.sendall(request)
+        assert connection.recv(4096).startswith(b"HTTP/1.1 200")
+        time.sleep(6)  # longer than uvicorn's default keep-alive (5 s)
+        connection.sendall(request)
+        assert connection.recv(4096).startswith(b"HTTP/1.1 200")
