@@ -7,7 +7,15 @@ from shapes import basis_of, stretched_ellipsoid_pair
 from curvefm import registry
 from curvefm.errors import CurvefmError
 from curvefm.evaluation import CurvePool, ground_truth_for
-from curvefm.fmap import DescriptorEnergy, Hints, curve_endpoints, descriptor_least_squares, lbfgs
+from curvefm.fmap import (
+    DescriptorEnergy,
+    Hints,
+    balanced_weights,
+    curve_endpoints,
+    descriptor_least_squares,
+    effective_count,
+    lbfgs,
+)
 from curvefm.geometry import build_mesh, check_edge_path, load_mesh, shortest_path
 from curvefm.pointwise import pointwise_from_fmap
 from curvefm.progress import no_progress
@@ -71,6 +79,31 @@ def test_descriptor_energy_gradient_matches_finite_differences():
         e[i] = step
         numeric = (energy(x + e)[0] - energy(x - e)[0]) / (2 * step)
         assert numeric == pytest.approx(grad[i], rel=1e-5, abs=1e-6)
+
+
+def test_exact_minimiser_zeroes_the_gradient_and_agrees_with_lbfgs():
+    F_from, F_to, lam_from, lam_to = random_problem(k_from=8, k_to=7)
+    rng = np.random.default_rng(3)
+    X, Y = rng.standard_normal((5, 8, 8)), rng.standard_normal((5, 7, 7))
+    energy = DescriptorEnergy(
+        F_from, F_to, lam_from, lam_to, X + X.transpose(0, 2, 1), Y + Y.transpose(0, 2, 1), 0.2, 1.0, 0.5
+    )
+    C = energy.minimiser()
+    value, grad = energy(C.ravel())
+    assert np.abs(grad).max() < 1e-8 * max(1.0, value)
+    assert energy(C.ravel() + 1e-3 * rng.standard_normal(C.size))[0] > value  # a minimum, not a saddle
+    np.testing.assert_allclose(lbfgs(energy, np.zeros_like(C), 5000)[0], C, atol=1e-5)
+
+
+def test_balanced_weights_ignore_how_often_a_descriptor_is_repeated():
+    F_from, F_to, lam_from, lam_to = random_problem(d=6)
+    no_ops_from, no_ops_to = np.zeros((0, 12, 12)), np.zeros((0, 10, 10))
+    once = balanced_weights(F_from, F_to, lam_from, lam_to, no_ops_from, no_ops_to, 0.5, 0.0)
+    thrice = balanced_weights(np.tile(F_from, 3), np.tile(F_to, 3), lam_from, lam_to, no_ops_from, no_ops_to, 0.5, 0.0)
+    # DescriptorEnergy divides by d, so the weight per descriptor column is w_descr / d: the same total
+    assert effective_count(np.tile(F_from, 3)) == pytest.approx(effective_count(F_from))
+    assert thrice[0] / 18 * 3 == pytest.approx(once[0] / 6)
+    assert thrice[1] == pytest.approx(once[1])
 
 
 def test_lbfgs_without_commutativity_reaches_the_least_squares_map():
