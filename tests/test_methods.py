@@ -2,11 +2,12 @@
 
 import numpy as np
 import pytest
+from conftest import unavailable
 from shapes import basis_of, stretched_ellipsoid_pair
 
 from curvefm import registry
 from curvefm.errors import CurvefmError
-from curvefm.evaluation import CurvePool, ground_truth_for
+from curvefm.evaluation import CurvePool, evaluate_map, ground_truth_curves, ground_truth_for
 from curvefm.fmap import (
     DescriptorEnergy,
     Hints,
@@ -17,6 +18,7 @@ from curvefm.fmap import (
     lbfgs,
 )
 from curvefm.geometry import build_mesh, check_edge_path, load_mesh, shortest_path
+from curvefm.matching import pair_with_basis_size
 from curvefm.pointwise import pointwise_from_fmap
 from curvefm.progress import no_progress
 from curvefm.spectral import (
@@ -26,6 +28,7 @@ from curvefm.spectral import (
     wave_kernel_maps,
     wave_kernel_signature,
 )
+from curvefm.store import Store
 
 
 @pytest.fixture(scope="module")
@@ -198,3 +201,26 @@ def test_exact_curves_need_dense_ground_truth(shared_data):
     assert len(pool.candidates) == 21  # the shared animal landmarks
     with pytest.raises(CurvefmError, match="exact curves need a dense ground truth"):
         pool.curves(2, seed=0, exact=True)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("pair_files", [("nonisometric/pyfm_cat_lion/cat-00.off", "nonisometric/pyfm_cat_lion/lion-00.off")])  # noqa: E501
+def test_no17_is_as_accurate_as_pyfm_given_the_same_landmarks(shared_data, tmp_path, pair_files):
+    try:
+        from pyFM.functional import FunctionalMapping
+        from pyFM.mesh import TriMesh
+    except ImportError:
+        unavailable("pyFM (pip install -e '.[bench]') is needed to compare NO17 with it")
+    source, target = (shared_data / p for p in pair_files)
+    M, N = load_mesh(source), load_mesh(target)
+    truth = ground_truth_for(source, target, M, N)
+    hints = Hints.from_curves(ground_truth_curves(M, N, truth, 2))  # 4 landmarks: the curves' endpoints
+    pair = pair_with_basis_size(Store(tmp_path), (M, N), 120)
+    plugin, params = registry.load("method", "no17")
+    ours = pointwise_from_fmap(plugin.run(pair, hints, params, no_progress).C_NM, pair.basis_N, pair.basis_M)
+    model = FunctionalMapping(*(TriMesh(m.vertices, m.faces, area_normalize=True, center=True) for m in (N, M)))
+    model.preprocess(n_descr=100, descr_type="WKS", landmarks=hints.landmarks[:, ::-1], k_process=120)
+    model.fit(K=(50, 50))
+    ours_error = evaluate_map(ours, truth, N).mean_area
+    pyfm_error = evaluate_map(model.get_p2p(), truth, N).mean_area
+    assert ours_error <= 1.05 * pyfm_error, (ours_error, pyfm_error)
