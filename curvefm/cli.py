@@ -10,6 +10,7 @@ import argparse
 import json
 import sys
 from dataclasses import fields
+from pathlib import Path
 
 from curvefm.errors import CurvefmError, InternalError, InvalidInput
 from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K
@@ -48,6 +49,11 @@ def cmd_match(args) -> int:
     )
     for path in write_outputs(result, args.out):
         print(path)
+    quality = Path(args.out) / "quality.json"
+    quality.write_text(json.dumps(result.summary(), indent=2))
+    print(quality)
+    if result.kept != "converted":
+        print(f"kept the {result.kept} maps: {result.reason}", file=sys.stderr)
     return 0
 
 

@@ -7,7 +7,7 @@ its own way and shares the rest: :func:`pair_with_basis_size`, :func:`convert` a
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +17,7 @@ from curvefm import registry
 from curvefm.errors import InvalidInput
 from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K, DEFAULT_SAMPLES, FunctionalMaps, Hints, transfer
 from curvefm.geometry import Mesh, save_mesh, texture_coordinates
-from curvefm.pointwise import PointwiseMaps
+from curvefm.pointwise import PointwiseMaps, compare, initial_maps, measure
 from curvefm.progress import Progress, no_progress, scaled
 from curvefm.registry import ConverterPlugin
 from curvefm.session import CurveSpec, trace_pair
@@ -38,6 +38,16 @@ class MatchResult:
     maps: PointwiseMaps
     method: str = "curves"
     paths: tuple[tuple[np.ndarray, np.ndarray], ...] = ()
+    quality: dict = field(default_factory=dict)
+    """Intrinsic figures (:mod:`curvefm.pointwise.quality`): ``{"converted": ...}``, and for a refining
+    converter also ``"initial"`` (the nearest-neighbour maps it started from) and ``"refined"``."""
+    kept: str = "converted"
+    """``"refined"`` or ``"initial"`` for a refining converter (which maps ``maps`` are), else ``"converted"``."""
+    reason: str = ""
+
+    def summary(self) -> dict:
+        """What a job result and ``curvefm match`` report about the maps: figures, which were kept and why."""
+        return {"kept": self.kept, "reason": self.reason, "quality": self.quality}
 
 
 def pair_with_basis_size(
@@ -64,9 +74,27 @@ def convert(
     method: str = "curves",
     paths: Sequence[tuple[np.ndarray, np.ndarray]] = (),
 ) -> MatchResult:
-    """Pointwise maps from ``fmaps`` by a converter with its parsed ``params``. Give ``pair`` bases of
-    ``converter.basis_size(params)`` functions where the store has them; else the converter computes them."""
-    return MatchResult(pair, fmaps, converter.run(pair, fmaps, params, progress), method, tuple(paths))
+    """Pointwise maps from ``fmaps`` by a converter with its parsed ``params``, given the user's curves
+    ``paths`` (refiners keep them). Give ``pair`` bases of ``converter.basis_size(params)`` functions where the
+    store has them; else the converter computes them.
+
+    A refining converter's maps are returned only if no intrinsic figure got worse than the nearest-neighbour
+    maps it started from (:func:`curvefm.pointwise.compare`); otherwise those starting maps are, and
+    ``reason`` names the figures that got worse."""
+    paths = tuple(paths)
+    maps = converter.convert(pair, fmaps, params, progress, paths)
+    quality = measure(pair, maps, paths)
+    if not converter.refines:
+        return MatchResult(pair, fmaps, maps, method, paths, {"converted": quality.as_dict()})
+    start = initial_maps(pair, fmaps)
+    start_quality = measure(pair, start, paths)
+    worse = compare(quality, start_quality)
+    figures = {"initial": start_quality.as_dict(), "refined": quality.as_dict()}
+    if worse:
+        reason = f"'{converter.name}' made the map worse ({'; '.join(worse)}): the initial maps are returned"
+        return MatchResult(pair, fmaps, start, method, paths, figures, "initial", reason)
+    reason = f"'{converter.name}' made no intrinsic figure worse than the initial maps"
+    return MatchResult(pair, fmaps, maps, method, paths, figures, "refined", reason)
 
 
 def match(

@@ -10,7 +10,12 @@ instance of its group's class (a converter listed under ``curvefm.tracers`` is r
 * ``curvefm.converters``, :class:`ConverterPlugin`: ``run(pair, maps, params, progress) -> PointwiseMaps``,
   pointwise maps both ways from a :class:`~curvefm.spectral.ShapePair` and its functional maps. Optional
   hook ``basis_size(params) -> int``: the basis functions per shape the converter works with, so that callers
-  holding stored bases can pass bases that large (0, the default: the maps' own size is enough).
+  holding stored bases can pass bases that large (0, the default: the maps' own size is enough). Optional
+  flag ``takes_curves``: ``run`` also accepts the keyword ``curves``, the user's corresponding curves as
+  ``(path_M, path_N)`` internal vertex paths (refiners keep them as constraints); callers use
+  :meth:`ConverterPlugin.convert`, which passes them only to a converter that takes them, so converters
+  written before the flag existed keep working. ``refines`` (default true): the converter improves on the
+  nearest-neighbour maps, and callers check that it did.
 * ``curvefm.methods``, :class:`MethodPlugin`: ``run(pair, hints, params, progress) -> FunctionalMaps``,
   functional maps from curves or landmarks (``curvefm reproduce`` compares them).
 
@@ -21,7 +26,7 @@ Parameters are parsed once, here (:func:`load`, or :meth:`Plugin.parse_params` o
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cache
 from importlib.metadata import EntryPoint, entry_points
@@ -84,8 +89,25 @@ def no_basis_size(params: BaseModel) -> int:
 
 @dataclass(frozen=True)
 class ConverterPlugin(Plugin[P]):
-    run: Callable[[ShapePair, FunctionalMaps, P, Progress], PointwiseMaps]
+    run: Callable[..., PointwiseMaps]
     basis_size: Callable[[P], int] = no_basis_size
+    takes_curves: bool = False
+    refines: bool = True
+    """Whether ``run`` refines the nearest-neighbour maps (then :func:`curvefm.matching.convert` keeps them
+    only where refinement made no intrinsic quality figure worse)."""
+
+    def convert(
+        self,
+        pair: ShapePair,
+        maps: FunctionalMaps,
+        params: P,
+        progress: Progress,
+        curves: Sequence[tuple[np.ndarray, np.ndarray]] = (),
+    ) -> PointwiseMaps:
+        """``run``, with the user's curves where the converter takes them."""
+        if self.takes_curves:
+            return self.run(pair, maps, params, progress, curves=tuple(curves))
+        return self.run(pair, maps, params, progress)
 
 
 @dataclass(frozen=True)

@@ -47,4 +47,5 @@ NEAREST_NEIGHBOR = ConverterPlugin(
     description="Nearest neighbours in the spectral embedding, both directions (Ovsjanikov et al. 2012)",
     Params=NearestNeighborParams,
     run=convert_nearest_neighbor,
+    refines=False,
 )

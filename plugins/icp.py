@@ -2,7 +2,8 @@
 
 Starting from the ``nearest-neighbor`` maps, each iteration fits, for each direction, the functional map
 closest to the current pointwise map among maps with orthonormal columns (an isometry preserves the
-mass-orthonormality of the unit-area bases), then converts it back to a pointwise map by nearest neighbours.
+mass-orthonormality of the unit-area bases), then converts it back to a pointwise map by nearest neighbours,
+in which the user's curves stay pinned (:class:`~curvefm.pointwise.CurvePins`).
 
 The map is rectangular: ``k`` functions on its domain, ``k_image > k`` on its image (as in pyFM's ICP).
 Square maps drift here: on FAUST 000 -> 011 with 10 curves, square k = 50 went from 0.028 to 0.10 in fifteen
@@ -19,7 +20,14 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from curvefm.fmap import FunctionalMaps
-from curvefm.pointwise import PointwiseMaps, bases_with, fmap_from_pointwise, initial_maps, pointwise_from_fmap
+from curvefm.pointwise import (
+    CurvePins,
+    PointwiseMaps,
+    bases_with,
+    fmap_from_pointwise,
+    initial_maps,
+    pointwise_from_fmap,
+)
 from curvefm.progress import Progress, no_progress, scaled
 from curvefm.registry import ConverterPlugin
 from curvefm.spectral import Basis, ShapePair
@@ -59,16 +67,17 @@ def icp_step(p2p_NM: np.ndarray, basis_M: Basis, basis_N: Basis, k: int, k_image
 
 
 def convert_icp(
-    pair: ShapePair, fmaps: FunctionalMaps, params: IcpParams, progress: Progress = no_progress
+    pair: ShapePair, fmaps: FunctionalMaps, params: IcpParams, progress: Progress = no_progress, curves=()
 ) -> PointwiseMaps:
     progress(0.0, "initial maps (nearest neighbours)")
     maps = initial_maps(pair, fmaps, params.search)
     basis_M, basis_N = bases_with(pair, params.k_image, scaled(progress, 0.05, 0.1))
-    p2p_NM, p2p_MN = maps.p2p_NM, maps.p2p_MN
+    pins = CurvePins.from_curves(pair.mesh_M, pair.mesh_N, curves)
+    p2p_NM, p2p_MN = pins.pin_NM(maps.p2p_NM), pins.pin_MN(maps.p2p_MN)
     for it in range(params.iterations):
         progress(0.1 + 0.9 * it / params.iterations, f"ICP iteration {it + 1} of at most {params.iterations}")
-        new_NM = icp_step(p2p_NM, basis_M, basis_N, params.k, params.k_image, params.search)
-        new_MN = icp_step(p2p_MN, basis_N, basis_M, params.k, params.k_image, params.search)
+        new_NM = pins.pin_NM(icp_step(p2p_NM, basis_M, basis_N, params.k, params.k_image, params.search))
+        new_MN = pins.pin_MN(icp_step(p2p_MN, basis_N, basis_M, params.k, params.k_image, params.search))
         converged = np.array_equal(new_NM, p2p_NM) and np.array_equal(new_MN, p2p_MN)
         p2p_NM, p2p_MN = new_NM, new_MN
         if converged:
@@ -88,4 +97,5 @@ ICP = ConverterPlugin(
     Params=IcpParams,
     run=convert_icp,
     basis_size=icp_basis_size,
+    takes_curves=True,
 )

@@ -1,8 +1,12 @@
 """Method plugins ``curves``, ``obcs12`` and ``no17``: functional maps from curves or landmarks.
 
-See :mod:`curvefm.fmap.baselines` for the energies. The descriptor baselines follow the usual pyFM-style setup:
+See :mod:`curvefm.fmap.baselines` for the energies. The descriptor baselines follow pyFM 1.3's setup:
 wave kernel signatures and wave kernel maps at the landmarks from the first ``spectrum`` eigenpairs, a map
-of size ``k`` (smaller than ours: descriptor methods degrade in large bases, see docs/results.md).
+of size ``k`` (smaller than ours: descriptor methods degrade in large bases, see docs/results.md), each term
+divided by its typical size (:func:`curvefm.fmap.balanced_weights`). What made them as accurate as pyFM
+(``benchmarks/bench_pyfm.py``; README, "Baselines against pyFM"): that normalisation, which lets redundant
+descriptors count once, and energies kept two filter widths inside the spectrum; the exact solve (no17)
+and using every descriptor's operator changed little.
 """
 
 from __future__ import annotations
@@ -16,10 +20,12 @@ from curvefm.errors import InvalidInput
 from curvefm.fmap import (
     DEFAULT_ALPHA,
     DEFAULT_SAMPLES,
+    EXACT_MAX_K,
     CurveMapSolver,
     DescriptorEnergy,
     FunctionalMaps,
     Hints,
+    balanced_weights,
     check_method_k,
     descriptor_least_squares,
     lbfgs,
@@ -36,6 +42,9 @@ from curvefm.spectral import (
     wave_kernel_maps,
     wave_kernel_signature,
 )
+
+W_COMM = 1.0  # chosen on FAUST 000 -> 011 and cat -> lion, see the README ("Baselines against pyFM")
+NO_OPERATORS = np.zeros((0, 1, 1))
 
 
 class CurvesParams(BaseModel):
@@ -65,22 +74,36 @@ class DescriptorParams(BaseModel):
     k: int = Field(50, ge=3, le=1000, description="size of the functional map")
     spectrum: int = Field(120, ge=3, le=1000, description="eigenpairs used to build the wave kernels")
     energies: int = Field(20, ge=1, le=500, description="log-energies per wave kernel descriptor")
-    sigma: float = Field(0.06, gt=0, description="filter width as a fraction of the log-eigenvalue range")
-    mu: float = Field(1.0, ge=0, description="weight of Laplacian commutativity")
+    sigma: float = Field(0.07, gt=0, description="filter width as a fraction of the log-eigenvalue range")
+    margin: float = Field(
+        2.0, ge=0, description="the energies start and end this many filter widths inside the log-eigenvalue range"
+    )
+    mu: float = Field(
+        1.0, ge=0, description="weight of Laplacian commutativity relative to descriptor preservation (each "
+        "term divided by its typical size)",
+    )
     landmarks: bool = Field(
         True, description="add wave kernel maps at the landmarks; false: wave kernel signatures alone"
     )
 
 
 class NO17Params(DescriptorParams):
+    mu: float = Field(
+        0.01, ge=0, description="weight of Laplacian commutativity relative to descriptor preservation (each "
+        "term divided by its typical size)",
+    )
     inputs: Literal["landmarks", "curves"] = Field(
         "landmarks",
         description="'landmarks': wave kernels at the landmarks; 'curves': each curve as a function "
         "(-1 off the curve, normalised arc length on it), the paper's baseline test",
     )
-    w_comm: float = Field(0.1, ge=0, description="weight of descriptor commutativity")
-    max_operators: int = Field(40, ge=1, le=1000, description="descriptors whose operators must commute")
-    max_iter: int = Field(300, ge=1, le=100_000, description="L-BFGS iterations")
+    w_comm: float = Field(
+        W_COMM, ge=0, description="weight of descriptor commutativity relative to descriptor preservation (each "
+        "term divided by its typical size)",
+    )
+    max_iter: int = Field(
+        300, ge=1, le=100_000, description=f"L-BFGS iterations (only for k > {EXACT_MAX_K}; smaller maps are exact)"
+    )
 
 
 def landmark_descriptors(
@@ -92,9 +115,10 @@ def landmark_descriptors(
     out = []
     for side, basis in ((0, pair.basis_M), (1, pair.basis_N)):
         spectral = _spectrum(basis, params.spectrum)
-        columns = [wave_kernel_signature(spectral, params.energies, params.sigma)]
+        filters = {"n_energies": params.energies, "sigma": params.sigma, "margin": params.margin}
+        columns = [wave_kernel_signature(spectral, **filters)]
         if params.landmarks:
-            columns.append(wave_kernel_maps(spectral, hints.landmarks[:, side], params.energies, params.sigma))
+            columns.append(wave_kernel_maps(spectral, hints.landmarks[:, side], **filters))
         out.append(normalised(basis, np.hstack(columns)))
     return out[0], out[1]
 
@@ -124,10 +148,12 @@ def run_obcs12(
     f_M, f_N = landmark_descriptors(pair, hints, params)
     A, B = _coefficients(pair.basis_M, f_M, k), _coefficients(pair.basis_N, f_N, k)
     lam_M, lam_N = normalised_eigenvalues(pair.basis_M, pair.basis_N, k)
-    C_MN = descriptor_least_squares(A, B, lam_M, lam_N, params.mu)
-    C_NM = descriptor_least_squares(B, A, lam_N, lam_M, params.mu)
+    maps = []
+    for F_from, F_to, l_from, l_to in ((A, B, lam_M, lam_N), (B, A, lam_N, lam_M)):
+        w_descr, mu, _ = balanced_weights(F_from, F_to, l_from, l_to, NO_OPERATORS, NO_OPERATORS, params.mu, 0.0)
+        maps.append(descriptor_least_squares(F_from, F_to, l_from, l_to, mu * F_from.shape[1] / w_descr))
     progress(1.0, "descriptor least squares solved")
-    return FunctionalMaps(C_MN, C_NM)
+    return FunctionalMaps(maps[0], maps[1])
 
 
 def run_no17(pair: ShapePair, hints: Hints, params: NO17Params, progress: Progress = no_progress) -> FunctionalMaps:
@@ -135,20 +161,26 @@ def run_no17(pair: ShapePair, hints: Hints, params: NO17Params, progress: Progre
     curves = params.inputs == "curves"
     f_M, f_N = curve_descriptors(pair, hints) if curves else landmark_descriptors(pair, hints, params)
     A, B = _coefficients(pair.basis_M, f_M, k), _coefficients(pair.basis_N, f_N, k)
-    chosen = np.unique(np.linspace(0, f_M.shape[1] - 1, min(params.max_operators, f_M.shape[1])).astype(int))
-    X = multiplication_operators(pair.basis_M, f_M[:, chosen], k)
-    Y = multiplication_operators(pair.basis_N, f_N[:, chosen], k)
+    X = multiplication_operators(pair.basis_M, f_M, k)
+    Y = multiplication_operators(pair.basis_N, f_N, k)
     lam_M, lam_N = normalised_eigenvalues(pair.basis_M, pair.basis_N, k)
     maps = []
     for step, (F_from, F_to, l_from, l_to, X_from, X_to) in enumerate(
         ((A, B, lam_M, lam_N, X, Y), (B, A, lam_N, lam_M, Y, X))
     ):
-        progress(0.5 * step, "quasi-Newton (L-BFGS) on descriptor preservation and commutativity")
-        energy = DescriptorEnergy(F_from, F_to, l_from, l_to, X_from, X_to, params.mu, 1.0, params.w_comm)
-        start = descriptor_least_squares(F_from, F_to, l_from, l_to, params.mu)
-        maps.append(lbfgs(energy, start, params.max_iter)[0])
+        progress(0.5 * step, "descriptor preservation and commutativity")
+        w_descr, mu, w_comm = balanced_weights(F_from, F_to, l_from, l_to, X_from, X_to, params.mu, params.w_comm)
+        energy = DescriptorEnergy(F_from, F_to, l_from, l_to, X_from, X_to, mu, w_descr, w_comm)
+        maps.append(energy.minimiser() if k <= EXACT_MAX_K else _quasi_newton(energy, params.max_iter))
     progress(1.0, "done")
     return FunctionalMaps(maps[0], maps[1])
+
+
+def _quasi_newton(energy: DescriptorEnergy, max_iter: int) -> np.ndarray:
+    """L-BFGS from the map of descriptor preservation and Laplacian commutativity alone."""
+    scale = energy.F_from.shape[1] / energy.w_descr
+    start = descriptor_least_squares(energy.F_from, energy.F_to, energy.lam_from, energy.lam_to, energy.mu * scale)
+    return lbfgs(energy, start, max_iter)[0]
 
 
 CURVES = MethodPlugin(

@@ -18,6 +18,9 @@ sparse SPD solve ``(alpha L + (1 - alpha) P^T A P + beta_t A) X = rhs``. beta_t 
 (the authors' schedule: 5e-3 rising to 0.5 over 100 iterations); alpha = 5e-4. It stops when the energy
 changes by less than ``tol`` (relative) over five iterations.
 
+The user's curves stay pinned (:class:`~curvefm.pointwise.CurvePins`): after every projection the vertices
+of each curve map onto its partner curve (the exact vertex, also with triangle projection).
+
 Deviations (errors: mean geodesic error / sqrt(area), 10 curves, from benchmarks/bench_converters.py):
 
 * Start: by default from ``zoomout``'s maps rather than the nearest-neighbour ones. RHM keeps the start's
@@ -47,7 +50,15 @@ from scipy.spatial import cKDTree
 from curvefm.fmap import FunctionalMaps
 from curvefm.geometry import Mesh, cotangent_laplacian
 from curvefm.plugins.zoomout import ZoomOutParams, convert_zoomout, zoomout_basis_size
-from curvefm.pointwise import PointwiseMaps, closest_points, geodesic_embedding, initial_maps, unit_area
+from curvefm.pointwise import (
+    CurvePins,
+    PointwiseMaps,
+    closest_points,
+    geodesic_embedding,
+    initial_maps,
+    no_pins,
+    unit_area,
+)
 from curvefm.progress import Progress, no_progress, scaled
 from curvefm.registry import ConverterPlugin
 from curvefm.spectral import ShapePair
@@ -106,6 +117,7 @@ class _Map:
     P: sp.csr_matrix
     p2p: np.ndarray
     X: np.ndarray
+    pinned: np.ndarray  # (n_domain,) the image vertex each domain vertex must map to, FREE (-1) if none
 
 
 def prepare_shape(mesh: Mesh, params: RhmParams) -> _Shape:
@@ -125,11 +137,14 @@ def project(fwd: _Map, back: _Map, alpha: float, beta: float, projection: str) -
     ``(1 - alpha) |back.X(x) - X_domain(y)|^2 + beta |X_image(x) - fwd.X(y)|^2`` (reversibility, coupling)."""
     data = np.hstack([np.sqrt(1 - alpha) * back.X, np.sqrt(beta) * fwd.image.X])
     queries = np.hstack([np.sqrt(1 - alpha) * fwd.domain.X, np.sqrt(beta) * fwd.X])
+    fixed = fwd.pinned >= 0
     if projection == "vertex":
-        fwd.p2p = cKDTree(data).query(queries, workers=-1)[1]
+        fwd.p2p = np.where(fixed, fwd.pinned, cKDTree(data).query(queries, workers=-1)[1])
         fwd.P = vertex_rows(fwd.p2p, len(data))
         return
     corners, weights = closest_points(data, fwd.image.faces, queries)
+    corners[fixed] = fwd.pinned[fixed, None]
+    weights[fixed] = (1.0, 0.0, 0.0)
     rows = np.repeat(np.arange(len(queries)), 3)
     fwd.P = sp.csr_matrix((weights.ravel(), (rows, corners.ravel())), shape=(len(queries), len(data)))
     fwd.p2p = corners[np.arange(len(corners)), np.argmax(weights, axis=1)]
@@ -160,12 +175,19 @@ def settled(energies: list[float], tol: float) -> bool:
 
 
 def reversible_harmonic_maps(
-    maps: PointwiseMaps, shape_M: _Shape, shape_N: _Shape, params: RhmParams, progress: Progress = no_progress
+    maps: PointwiseMaps,
+    shape_M: _Shape,
+    shape_N: _Shape,
+    params: RhmParams,
+    progress: Progress = no_progress,
+    pins: CurvePins | None = None,
 ) -> PointwiseMaps:
-    """Alternating minimisation from the pointwise maps ``maps``."""
-    P_MN, P_NM = vertex_rows(maps.p2p_MN, len(shape_N.X)), vertex_rows(maps.p2p_NM, len(shape_M.X))
-    MN = _Map(shape_M, shape_N, P_MN, maps.p2p_MN, P_MN @ shape_N.X)
-    NM = _Map(shape_N, shape_M, P_NM, maps.p2p_NM, P_NM @ shape_M.X)
+    """Alternating minimisation from the pointwise maps ``maps``, keeping ``pins`` fixed."""
+    pins = pins or no_pins(len(shape_M.X), len(shape_N.X))
+    p2p_MN, p2p_NM = pins.pin_MN(maps.p2p_MN), pins.pin_NM(maps.p2p_NM)
+    P_MN, P_NM = vertex_rows(p2p_MN, len(shape_N.X)), vertex_rows(p2p_NM, len(shape_M.X))
+    MN = _Map(shape_M, shape_N, P_MN, p2p_MN, P_MN @ shape_N.X, pins.M_to_N)
+    NM = _Map(shape_N, shape_M, P_NM, p2p_NM, P_NM @ shape_M.X, pins.N_to_M)
     energies = []
     for t in range(1, params.max_iterations + 1):
         progress((t - 1) / params.max_iterations, f"RHM iteration {t} of at most {params.max_iterations}")
@@ -181,10 +203,10 @@ def reversible_harmonic_maps(
 
 
 def convert_rhm(
-    pair: ShapePair, fmaps: FunctionalMaps, params: RhmParams, progress: Progress = no_progress
+    pair: ShapePair, fmaps: FunctionalMaps, params: RhmParams, progress: Progress = no_progress, curves=()
 ) -> PointwiseMaps:
     if params.init == "zoomout":
-        maps = convert_zoomout(pair, fmaps, params.init_zoomout, scaled(progress, 0.0, 0.3))
+        maps = convert_zoomout(pair, fmaps, params.init_zoomout, scaled(progress, 0.0, 0.3), curves)
     else:
         progress(0.0, "initial maps (nearest neighbours)")
         maps = initial_maps(pair, fmaps)
@@ -192,7 +214,8 @@ def convert_rhm(
     shape_M = prepare_shape(pair.mesh_M, params)
     progress(0.35, "geodesic embedding of the target")
     shape_N = prepare_shape(pair.mesh_N, params)
-    return reversible_harmonic_maps(maps, shape_M, shape_N, params, scaled(progress, 0.4, 1.0))
+    pins = CurvePins.from_curves(pair.mesh_M, pair.mesh_N, curves)
+    return reversible_harmonic_maps(maps, shape_M, shape_N, params, scaled(progress, 0.4, 1.0), pins)
 
 
 def rhm_basis_size(params: RhmParams) -> int:
@@ -206,4 +229,5 @@ RHM = ConverterPlugin(
     Params=RhmParams,
     run=convert_rhm,
     basis_size=rhm_basis_size,
+    takes_curves=True,
 )

@@ -3,9 +3,10 @@
 
 Starting from the ``nearest-neighbor`` maps, for k = k_init, k_init + step, ..., k_final: fit the k x k
 functional map of each pointwise map, then convert it back to a pointwise map by nearest neighbours in k
-dimensions. With ``samples`` set, the iterations run on that many farthest-point samples of each shape (the
-paper's fast variant: maps between samples, functional maps by least squares on the samples) and only the
-last conversion is at full resolution.
+dimensions. The user's curves stay pinned (:class:`~curvefm.pointwise.CurvePins`): after every conversion
+the vertices of each curve map onto its partner curve, so each fitted map keeps them. With ``samples`` set,
+the iterations run on that many farthest-point samples of each shape (the paper's fast variant: maps between
+samples, functional maps by least squares on the samples) and only the last conversion is at full resolution.
 
 Starting at the session's own k (usually 120) is much worse than starting low: curve constraints pin down
 the low frequencies only. On FAUST 000 -> 011 with 10 curves, 120 -> 200 reached 0.025 (from 0.028), while
@@ -20,7 +21,15 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from curvefm.fmap import FunctionalMaps
-from curvefm.pointwise import PointwiseMaps, bases_with, initial_maps, nearest_neighbors, spread_samples
+from curvefm.pointwise import (
+    CurvePins,
+    PointwiseMaps,
+    bases_with,
+    initial_maps,
+    nearest_neighbors,
+    no_pins,
+    spread_samples,
+)
 from curvefm.progress import Progress, no_progress, scaled
 from curvefm.registry import ConverterPlugin
 from curvefm.spectral import Basis, ShapePair
@@ -69,6 +78,10 @@ class _Rows:
     def evecs(self, k: int) -> np.ndarray:
         return self.basis.evecs[self.ids, :k]
 
+    @property
+    def subset(self) -> np.ndarray | None:
+        return None if self.all else self.ids
+
 
 def fit_fmap(p2p: np.ndarray, domain: _Rows, image: _Rows, k: int) -> np.ndarray:
     """The k x k functional map (image -> domain coefficients) pulled back by a pointwise map that sends
@@ -99,25 +112,29 @@ def zoomout(
     params: ZoomOutParams,
     samples: tuple[np.ndarray, np.ndarray] | None = None,
     progress: Progress = no_progress,
+    pins: CurvePins | None = None,
 ) -> PointwiseMaps:
-    """ZoomOut from pointwise maps. ``samples`` is ``(ids_M, ids_N)`` for the fast variant, else None."""
+    """ZoomOut from pointwise maps. ``samples`` is ``(ids_M, ids_N)`` for the fast variant, else None;
+    ``pins`` fix the partners of the curves' vertices after every conversion."""
     ids_M, ids_N = samples if samples is not None else (None, None)
     rows_M, rows_N = _Rows(basis_M, ids_M), _Rows(basis_N, ids_N)
-    p_NM, p_MN = maps.p2p_NM[rows_N.ids], maps.p2p_MN[rows_M.ids]
+    pins = pins or no_pins(basis_M.n_vertices, basis_N.n_vertices)
+    p_NM = pins.pin_NM(maps.p2p_NM[rows_N.ids], rows_N.subset)
+    p_MN = pins.pin_MN(maps.p2p_MN[rows_M.ids], rows_M.subset)
     sizes = list(range(params.k_init, params.k_final, params.step)) + [params.k_final]
     for i, k in enumerate(sizes):
         progress(i / len(sizes), f"ZoomOut k = {k} (up to {params.k_final})")
         C_MN, C_NM = fit_fmap(p_NM, rows_N, rows_M, k), fit_fmap(p_MN, rows_M, rows_N, k)
         if i == len(sizes) - 1 and samples is not None:
             rows_M, rows_N = _Rows(basis_M, None), _Rows(basis_N, None)
-        p_NM = match_rows(C_MN, C_NM, rows_N, rows_M, params.embedding, params.search)
-        p_MN = match_rows(C_NM, C_MN, rows_M, rows_N, params.embedding, params.search)
+        p_NM = pins.pin_NM(match_rows(C_MN, C_NM, rows_N, rows_M, params.embedding, params.search), rows_N.subset)
+        p_MN = pins.pin_MN(match_rows(C_NM, C_MN, rows_M, rows_N, params.embedding, params.search), rows_M.subset)
     progress(1.0, f"ZoomOut finished at k = {params.k_final}")
     return PointwiseMaps(p2p_NM=p_NM, p2p_MN=p_MN)
 
 
 def convert_zoomout(
-    pair: ShapePair, fmaps: FunctionalMaps, params: ZoomOutParams, progress: Progress = no_progress
+    pair: ShapePair, fmaps: FunctionalMaps, params: ZoomOutParams, progress: Progress = no_progress, curves=()
 ) -> PointwiseMaps:
     progress(0.0, "initial maps (nearest neighbours)")
     maps = initial_maps(pair, fmaps, params.search)
@@ -126,7 +143,8 @@ def convert_zoomout(
     if params.samples is not None:
         progress(0.2, f"{params.samples} farthest-point samples per shape")
         samples = (spread_samples(pair.mesh_M, params.samples), spread_samples(pair.mesh_N, params.samples))
-    return zoomout(maps, basis_M, basis_N, params, samples, scaled(progress, 0.25, 1.0))
+    pins = CurvePins.from_curves(pair.mesh_M, pair.mesh_N, curves)
+    return zoomout(maps, basis_M, basis_N, params, samples, scaled(progress, 0.25, 1.0), pins)
 
 
 def zoomout_basis_size(params: ZoomOutParams) -> int:
@@ -140,4 +158,5 @@ ZOOMOUT = ConverterPlugin(
     Params=ZoomOutParams,
     run=convert_zoomout,
     basis_size=zoomout_basis_size,
+    takes_curves=True,
 )

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs everything curvefm needs on a Debian-like machine with Python 3.11+: system libraries
 # (open3d needs libusb; the browser tests need Chromium; docker-compose checks the compose file),
-# the Python package with its service, test and reproduce extras, and three.js for the web UI.
+# the Python package with its service, test, reproduce and bench (pyFM, to compare baselines) extras, and
+# three.js for the web UI.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -17,7 +18,7 @@ if [ ${#missing[@]} -gt 0 ]; then
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${missing[@]}" >/dev/null
 fi
 
-python3 -m pip install -q --disable-pip-version-check -e ".[service,test,reproduce]"
+python3 -m pip install -q --disable-pip-version-check -e ".[service,test,reproduce,bench]"
 if [ -f package.json ]; then
   npm install --no-audit --no-fund --silent
 fi

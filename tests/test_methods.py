@@ -2,13 +2,23 @@
 
 import numpy as np
 import pytest
+from conftest import unavailable
 from shapes import basis_of, stretched_ellipsoid_pair
 
 from curvefm import registry
 from curvefm.errors import CurvefmError
-from curvefm.evaluation import CurvePool, ground_truth_for
-from curvefm.fmap import DescriptorEnergy, Hints, curve_endpoints, descriptor_least_squares, lbfgs
+from curvefm.evaluation import CurvePool, evaluate_map, ground_truth_curves, ground_truth_for
+from curvefm.fmap import (
+    DescriptorEnergy,
+    Hints,
+    balanced_weights,
+    curve_endpoints,
+    descriptor_least_squares,
+    effective_count,
+    lbfgs,
+)
 from curvefm.geometry import build_mesh, check_edge_path, load_mesh, shortest_path
+from curvefm.matching import pair_with_basis_size
 from curvefm.pointwise import pointwise_from_fmap
 from curvefm.progress import no_progress
 from curvefm.spectral import (
@@ -18,6 +28,7 @@ from curvefm.spectral import (
     wave_kernel_maps,
     wave_kernel_signature,
 )
+from curvefm.store import Store
 
 
 @pytest.fixture(scope="module")
@@ -71,6 +82,31 @@ def test_descriptor_energy_gradient_matches_finite_differences():
         e[i] = step
         numeric = (energy(x + e)[0] - energy(x - e)[0]) / (2 * step)
         assert numeric == pytest.approx(grad[i], rel=1e-5, abs=1e-6)
+
+
+def test_exact_minimiser_zeroes_the_gradient_and_agrees_with_lbfgs():
+    F_from, F_to, lam_from, lam_to = random_problem(k_from=8, k_to=7)
+    rng = np.random.default_rng(3)
+    X, Y = rng.standard_normal((5, 8, 8)), rng.standard_normal((5, 7, 7))
+    energy = DescriptorEnergy(
+        F_from, F_to, lam_from, lam_to, X + X.transpose(0, 2, 1), Y + Y.transpose(0, 2, 1), 0.2, 1.0, 0.5
+    )
+    C = energy.minimiser()
+    value, grad = energy(C.ravel())
+    assert np.abs(grad).max() < 1e-8 * max(1.0, value)
+    assert energy(C.ravel() + 1e-3 * rng.standard_normal(C.size))[0] > value  # a minimum, not a saddle
+    np.testing.assert_allclose(lbfgs(energy, np.zeros_like(C), 5000)[0], C, atol=1e-5)
+
+
+def test_balanced_weights_ignore_how_often_a_descriptor_is_repeated():
+    F_from, F_to, lam_from, lam_to = random_problem(d=6)
+    no_ops_from, no_ops_to = np.zeros((0, 12, 12)), np.zeros((0, 10, 10))
+    once = balanced_weights(F_from, F_to, lam_from, lam_to, no_ops_from, no_ops_to, 0.5, 0.0)
+    thrice = balanced_weights(np.tile(F_from, 3), np.tile(F_to, 3), lam_from, lam_to, no_ops_from, no_ops_to, 0.5, 0.0)
+    # DescriptorEnergy divides by d, so the weight per descriptor column is w_descr / d: the same total
+    assert effective_count(np.tile(F_from, 3)) == pytest.approx(effective_count(F_from))
+    assert thrice[0] / 18 * 3 == pytest.approx(once[0] / 6)
+    assert thrice[1] == pytest.approx(once[1])
 
 
 def test_lbfgs_without_commutativity_reaches_the_least_squares_map():
@@ -165,3 +201,26 @@ def test_exact_curves_need_dense_ground_truth(shared_data):
     assert len(pool.candidates) == 21  # the shared animal landmarks
     with pytest.raises(CurvefmError, match="exact curves need a dense ground truth"):
         pool.curves(2, seed=0, exact=True)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("pair_files", [("nonisometric/pyfm_cat_lion/cat-00.off", "nonisometric/pyfm_cat_lion/lion-00.off")])  # noqa: E501
+def test_no17_is_as_accurate_as_pyfm_given_the_same_landmarks(shared_data, tmp_path, pair_files):
+    try:
+        from pyFM.functional import FunctionalMapping
+        from pyFM.mesh import TriMesh
+    except ImportError:
+        unavailable("pyFM (pip install -e '.[bench]') is needed to compare NO17 with it")
+    source, target = (shared_data / p for p in pair_files)
+    M, N = load_mesh(source), load_mesh(target)
+    truth = ground_truth_for(source, target, M, N)
+    hints = Hints.from_curves(ground_truth_curves(M, N, truth, 2))  # 4 landmarks: the curves' endpoints
+    pair = pair_with_basis_size(Store(tmp_path), (M, N), 120)
+    plugin, params = registry.load("method", "no17")
+    ours = pointwise_from_fmap(plugin.run(pair, hints, params, no_progress).C_NM, pair.basis_N, pair.basis_M)
+    model = FunctionalMapping(*(TriMesh(m.vertices, m.faces, area_normalize=True, center=True) for m in (N, M)))
+    model.preprocess(n_descr=100, descr_type="WKS", landmarks=hints.landmarks[:, ::-1], k_process=120)
+    model.fit(K=(50, 50))
+    ours_error = evaluate_map(ours, truth, N).mean_area
+    pyfm_error = evaluate_map(model.get_p2p(), truth, N).mean_area
+    assert ours_error <= 1.05 * pyfm_error, (ours_error, pyfm_error)

@@ -46,7 +46,9 @@ def refine(data_dir: str, session: dict, converter: str = "nearest-neighbor", pa
 
     Writes ``map_target_to_source.txt`` / ``map_source_to_target.txt`` (file ids, as ``curvefm match``), the
     same maps as ``p2p_target_to_source.npy`` / ``p2p_source_to_target.npy``, both functional maps and
-    ``target_textured.obj``.
+    ``target_textured.obj``. The result carries the maps' intrinsic quality figures and, for a refining
+    converter, which maps were kept (``kept``: ``refined`` or ``initial``) and why (``reason``); see
+    :func:`curvefm.matching.convert`.
     """
     with running_job() as job:
         record = SessionRecord.model_validate(session)
@@ -67,7 +69,10 @@ def refine(data_dir: str, session: dict, converter: str = "nearest-neighbor", pa
         job.progress(0.9, "writing results")
         files = _publish(Path(data_dir) / "results" / job.id, lambda out: _write_result_files(result, out))
         job.progress(1.0, "done")
-        return {"session": record.id, "revision": record.revision, "converter": converter, "files": files}
+        return {
+            "session": record.id, "revision": record.revision, "converter": converter, "files": files,
+            **result.summary(),
+        }  # fmt: skip
 
 
 def _write_result_files(result: MatchResult, out: Path) -> None:

@@ -3,9 +3,12 @@ paper's CG and an L-BFGS reference, the descriptor baselines' energies, and func
 """
 
 from curvefm.fmap.baselines import (
+    EXACT_MAX_K,
     DescriptorEnergy,
+    balanced_weights,
     check_method_k,
     descriptor_least_squares,
+    effective_count,
     lbfgs,
     normalised_eigenvalues,
 )
@@ -30,17 +33,20 @@ __all__ = [
     "DEFAULT_K",
     "DEFAULT_SAMPLES",
     "DescriptorEnergy",
+    "EXACT_MAX_K",
     "FunctionTransfer",
     "FunctionalMaps",
     "Hints",
     "PARALLEL_MIN_SIZE",
     "RIDGE",
+    "balanced_weights",
     "check_method_k",
     "column_diagonals",
     "column_ridge",
     "conjugate_gradient_solve",
     "curve_endpoints",
     "descriptor_least_squares",
+    "effective_count",
     "lbfgs",
     "normalised_eigenvalues",
     "quasi_newton_solve",

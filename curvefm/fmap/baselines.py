@@ -7,12 +7,15 @@ A method plugin (entry-point group ``curvefm.methods``) receives a ``ShapePair``
 * ``obcs12`` (Ovsjanikov et al. 2012): least squares on descriptor preservation ``C F_M = F_N`` plus Laplacian
   commutativity, with wave kernel signatures and wave kernel maps at the landmarks. Exact, per row of C.
 * ``no17`` (Nogneng and Ovsjanikov 2017): the same plus descriptor commutativity ``C X_f = Y_f C`` with the
-  multiplication operators of the descriptors, minimised with L-BFGS from the ``obcs12`` solution. With
-  ``inputs="curves"`` the descriptors are the curves themselves as functions: the paper's "baseline test".
+  multiplication operators of the descriptors. The energy is quadratic in C, so it is minimised exactly (one
+  Cholesky solve of its ``k^2`` normal equations) up to :data:`EXACT_MAX_K`, and by L-BFGS from the
+  ``obcs12`` solution above that. With ``inputs="curves"`` the descriptors are the curves themselves as
+  functions: the paper's "baseline test".
 
-Energy normalisation, shared with the curve solver: descriptors have unit L2 norm under the mass, the
-descriptor and commutativity terms are means over descriptors, eigenvalues are divided by the larger of the
-two k-th eigenvalues.
+Energy normalisation: descriptors have unit L2 norm under the mass and eigenvalues are divided by the larger
+of the two k-th eigenvalues. :func:`balanced_weights` then divides each term by its typical size, as pyFM
+1.3 does (its ``canonical_taus``), so that the weights a user gives are relative and do not depend on how
+many descriptors there are or how redundant they are.
 """
 
 from __future__ import annotations
@@ -20,12 +23,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 from scipy.optimize import minimize
 
 from curvefm.errors import InternalError, InvalidInput
 from curvefm.fmap.column_solve import solve_columns
 from curvefm.spectral import Basis
 
+EXACT_MAX_K = 64  # the k^2 x k^2 normal equations: 134 MB and about 1 s at k = 64; L-BFGS above
 
 def normalised_eigenvalues(basis_M: Basis, basis_N: Basis, k: int) -> tuple[np.ndarray, np.ndarray]:
     scale = max(basis_M.evals[k - 1], basis_N.evals[k - 1], 1e-12)
@@ -63,6 +68,27 @@ class DescriptorEnergy:
     w_descr: float = 1.0
     w_comm: float = 1.0
 
+    def minimiser(self) -> np.ndarray:
+        """The exact minimiser: the solution of the normal equations in ``vec(C)`` (C's rows concatenated).
+
+        With symmetric operators, ``sum_f ||C X_f - Y_f C||^2`` has the Hessian (halved)
+        ``I (x) S_X + S_Y (x) I - 2 sum_f Y_f (x) X_f``, ``S_X = sum_f X_f^2``; the last sum is one matrix
+        product of the stacked operators."""
+        k_to, k_from = len(self.lam_to), len(self.lam_from)
+        d, q = self.F_from.shape[1], max(len(self.X), 1)
+        D = (self.lam_to[:, None] - self.lam_from[None, :]) ** 2
+        H = self.w_descr / d * np.kron(np.eye(k_to), self.F_from @ self.F_from.T) + self.mu * np.diag(D.ravel())
+        if len(self.X):
+            S_X, S_Y = np.einsum("fab,fbc->ac", self.X, self.X), np.einsum("fab,fbc->ac", self.Y, self.Y)
+            cross = self.Y.reshape(len(self.Y), -1).T @ self.X.reshape(len(self.X), -1)
+            cross = cross.reshape(k_to, k_to, k_from, k_from).transpose(0, 2, 1, 3).reshape(H.shape)
+            H += self.w_comm / q * (np.kron(np.eye(k_to), S_X) + np.kron(S_Y, np.eye(k_from)) - 2 * cross)
+        rhs = self.w_descr / d * (self.F_to @ self.F_from.T).ravel()
+        try:
+            return scipy.linalg.solve(H, rhs, assume_a="pos").reshape(k_to, k_from)
+        except np.linalg.LinAlgError:
+            raise InternalError("the descriptor energy is not strictly convex (no unique map)") from None
+
     def __call__(self, x: np.ndarray) -> tuple[float, np.ndarray]:
         k_to, k_from = len(self.lam_to), len(self.lam_from)
         C = x.reshape(k_to, k_from)
@@ -77,6 +103,39 @@ class DescriptorEnergy:
             + 2 * self.w_comm * np.sum(R_comm @ self.X - self.Y @ R_comm, axis=0) / q
         )
         return float(value), grad.ravel()
+
+
+def effective_count(F: np.ndarray) -> float:
+    """How many independent descriptors the coefficient columns ``F`` (k x d) hold:
+    ``trace(G)^2 / ||G||_F^2`` for their Gram matrix G, the constant function left out (d for orthogonal
+    descriptors of equal norm, 1 for d copies of one)."""
+    inner = F[1:] @ F[1:].T  # same nonzero spectrum as the d x d Gram matrix, and smaller
+    denominator = float(np.sum(inner**2))
+    return float(np.trace(inner)) ** 2 / denominator if denominator > 0 else 1.0
+
+
+def balanced_weights(
+    F_from: np.ndarray, F_to: np.ndarray, lam_from: np.ndarray, lam_to: np.ndarray,
+    X: np.ndarray, Y: np.ndarray, w_lap: float, w_comm: float,
+) -> tuple[float, float, float]:  # fmt: skip
+    """``(w_descr, mu, w_comm)`` for :class:`DescriptorEnergy` such that each term is divided by its typical
+    size and then weighted relative to descriptor preservation (weight 1).
+
+    Typical sizes (for a k x k map): descriptor preservation ``||F_from||^2 / p``, Laplacian commutativity the
+    mean row sum of its mask, descriptor commutativity ``(k ||X||^2 + k ||Y||^2 - 2 sum_f tr X_f tr Y_f) / (k p)``,
+    with ``p`` the :func:`effective_count` of the descriptors: redundant descriptors count once.
+    """
+    k_to, k_from = len(lam_to), len(lam_from)
+    d, q = F_from.shape[1], max(len(X), 1)
+    p = max(0.5 * (effective_count(F_from) + effective_count(F_to)), 1e-12)
+    D = (lam_to[:, None] - lam_from[None, :]) ** 2
+    size_descr = float(np.sum(F_from[1:] ** 2)) / p
+    size_lap = float(D.sum()) / max(k_to, k_from)
+    traces = np.trace(X, axis1=1, axis2=2) @ np.trace(Y, axis1=1, axis2=2) if len(X) else 0.0
+    size_comm = (k_to * np.sum(X**2) + k_from * np.sum(Y**2) - 2 * traces) / (k_to * k_from) * min(k_to, k_from) / p
+    w_descr = d / size_descr if size_descr > 0 else float(d)
+    mu = w_lap / size_lap if size_lap > 0 else w_lap
+    return w_descr, mu, (q * w_comm / size_comm if size_comm > 0 else 0.0)
 
 
 def lbfgs(energy, C0: np.ndarray, max_iter: int, tol: float = 1e-10) -> tuple[np.ndarray, int]:

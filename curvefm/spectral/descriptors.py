@@ -19,31 +19,39 @@ import numpy as np
 from curvefm.errors import InvalidInput
 from curvefm.spectral.basis import Basis
 
+OPERATOR_BLOCK = 2048  # vertices per block of products in multiplication_operators (bounds its memory)
 
-def _energy_filters(evals: np.ndarray, n_energies: int, sigma: float) -> np.ndarray:
+
+def _energy_filters(evals: np.ndarray, n_energies: int, sigma: float, margin: float = 0.0) -> np.ndarray:
     """(n_energies, k-1) normalised log-normal filters over the nonzero eigenvalues; ``sigma`` is the filter
-    width as a fraction of the log-eigenvalue range (Aubry et al.'s variance 6 over 100 energies is 0.06)."""
+    width as a fraction of the log-eigenvalue range (Aubry et al.'s variance 6 over 100 energies is 0.06).
+    With ``margin`` the energies start and end that many filter widths inside the range, so no filter is
+    centred where it sees only half its eigenvalues (pyFM's choice: 2)."""
     if n_energies < 1:
         raise InvalidInput(f"n_energies must be at least 1, got {n_energies}")
     if len(evals) < 3:
         raise InvalidInput(f"wave kernels need at least 3 basis functions, got {len(evals)}")
     log_lam = np.log(np.maximum(evals[1:], 1e-12))
-    energies = np.linspace(log_lam[0], log_lam[-1], n_energies)
     width = sigma * (log_lam[-1] - log_lam[0])
+    energies = np.linspace(log_lam[0] + margin * width, log_lam[-1] - margin * width, n_energies)
     filters = np.exp(-((energies[:, None] - log_lam[None, :]) ** 2) / (2 * width**2))
     return filters / filters.sum(axis=1, keepdims=True)
 
 
-def wave_kernel_signature(basis: Basis, n_energies: int = 20, sigma: float = 0.06) -> np.ndarray:
-    """WKS, (n, n_energies), at energies evenly spaced over the log-eigenvalues."""
-    filters = _energy_filters(basis.evals, n_energies, sigma)
+def wave_kernel_signature(
+    basis: Basis, n_energies: int = 20, sigma: float = 0.06, *, margin: float = 0.0
+) -> np.ndarray:
+    """WKS, (n, n_energies), at energies evenly spaced over the log-eigenvalues (``margin``: see above)."""
+    filters = _energy_filters(basis.evals, n_energies, sigma, margin)
     return (basis.evecs[:, 1:] ** 2) @ filters.T
 
 
-def wave_kernel_maps(basis: Basis, landmarks: np.ndarray, n_energies: int = 20, sigma: float = 0.06) -> np.ndarray:
+def wave_kernel_maps(
+    basis: Basis, landmarks: np.ndarray, n_energies: int = 20, sigma: float = 0.06, *, margin: float = 0.0
+) -> np.ndarray:
     """Wave kernel maps at each landmark, (n, len(landmarks) * n_energies), grouped by landmark."""
     landmarks = np.asarray(landmarks, dtype=np.int64).reshape(-1)
-    filters = _energy_filters(basis.evals, n_energies, sigma)
+    filters = _energy_filters(basis.evals, n_energies, sigma, margin)
     at_landmarks = basis.evecs[landmarks, 1:]  # (L, k-1)
     weights = at_landmarks[:, None, :] * filters[None, :, :]  # (L, E, k-1)
     return basis.evecs[:, 1:] @ weights.reshape(-1, weights.shape[-1]).T
@@ -68,7 +76,18 @@ def normalised(basis: Basis, functions: np.ndarray) -> np.ndarray:
 
 
 def multiplication_operators(basis: Basis, functions: np.ndarray, k: int) -> np.ndarray:
-    """``Phi^T A diag(f) Phi`` for each column f of ``functions``: (d, k, k)."""
+    """``Phi^T A diag(f) Phi`` for each column f of ``functions``: (d, k, k).
+
+    One matrix product for all of them: the operators are symmetric, so only the ``k (k + 1) / 2`` products
+    ``A phi_a phi_b`` (a <= b) are formed, a block of vertices at a time, and every operator is a weighted sum
+    of them."""
     Phi = basis.evecs[:, :k]
-    weighted = basis.mass[:, None] * Phi
-    return np.stack([(weighted * f[:, None]).T @ Phi for f in functions.T])
+    rows, cols = np.triu_indices(k)
+    packed = np.zeros((functions.shape[1], len(rows)))
+    for start in range(0, len(Phi), OPERATOR_BLOCK):
+        block = slice(start, start + OPERATOR_BLOCK)
+        packed += functions[block].T @ ((basis.mass[block, None] * Phi[block][:, rows]) * Phi[block][:, cols])
+    ops = np.empty((functions.shape[1], k, k))
+    ops[:, rows, cols] = packed
+    ops[:, cols, rows] = packed
+    return ops

@@ -1,0 +1,95 @@
+"""Intrinsic quality of pointwise maps both ways: figures that need no ground truth.
+
+* ``curve_residual``: mean distance from the images of the user's curves' vertices to the corresponding
+  curve, both directions (0: every curve lands on its partner).
+* ``coverage``: the fraction of each shape's area that the other shape's map reaches, averaged over both
+  directions (1: surjective both ways).
+* ``round_trip``: mean distance between a vertex and its image after going there and back (M -> N -> M and
+  N -> M -> N), area-weighted (0: the two maps invert each other, i.e. bijective).
+* ``inverse_deviation``: ``||C_NM C_MN - I||_F / sqrt(k)`` for the k x k functional maps the pointwise maps
+  induce (0: inverse to each other on the first k frequencies).
+
+Distances are measured on the shapes scaled to unit area, so the figures do not depend on units.
+:func:`compare` decides whether a refined map is worse than its start, figure by figure.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from curvefm.pointwise.conversion import PointwiseMaps, fmap_from_pointwise
+from curvefm.spectral import ShapePair
+
+QUALITY_K = 30  # frequencies of the induced functional maps for inverse_deviation
+#: how much worse a figure may get before a refinement is reported as making the map worse
+TOLERANCE = {"curve_residual": 2e-3, "coverage": 1e-2, "round_trip": 2e-3, "inverse_deviation": 2e-2}
+HIGHER_IS_BETTER = {"coverage"}
+
+
+@dataclass(frozen=True)
+class MapQuality:
+    curve_residual: float | None  # None without curves
+    coverage: float
+    round_trip: float
+    inverse_deviation: float
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def measure(pair: ShapePair, maps: PointwiseMaps, paths: Sequence[tuple[np.ndarray, np.ndarray]] = ()) -> MapQuality:
+    """The intrinsic figures of ``maps`` between the shapes of ``pair``, given the user's curves ``paths``."""
+    X_M = pair.mesh_M.vertices / np.sqrt(pair.mesh_M.area)
+    X_N = pair.mesh_N.vertices / np.sqrt(pair.mesh_N.area)
+    a_M, a_N = pair.basis_M.mass / pair.basis_M.mass.sum(), pair.basis_N.mass / pair.basis_N.mass.sum()
+    coverage = 0.5 * (a_N[np.unique(maps.p2p_MN)].sum() + a_M[np.unique(maps.p2p_NM)].sum())
+    round_trip = 0.5 * (
+        a_M @ np.linalg.norm(X_M[maps.p2p_NM[maps.p2p_MN]] - X_M, axis=1)
+        + a_N @ np.linalg.norm(X_N[maps.p2p_MN[maps.p2p_NM]] - X_N, axis=1)
+    )
+    return MapQuality(
+        curve_residual=curve_residual(X_M, X_N, maps, paths),
+        coverage=float(coverage),
+        round_trip=float(round_trip),
+        inverse_deviation=inverse_deviation(pair, maps),
+    )
+
+
+def curve_residual(X_M: np.ndarray, X_N: np.ndarray, maps: PointwiseMaps, paths) -> float | None:
+    """Mean distance from mapped curve vertices to the partner curve (nearest vertex of it), both ways."""
+    if not paths:
+        return None
+    distances = []
+    for path_M, path_N in paths:
+        distances.append(_to_curve(X_N[maps.p2p_MN[path_M]], X_N[path_N]))
+        distances.append(_to_curve(X_M[maps.p2p_NM[path_N]], X_M[path_M]))
+    return float(np.concatenate(distances).mean())
+
+
+def inverse_deviation(pair: ShapePair, maps: PointwiseMaps) -> float:
+    k = min(QUALITY_K, pair.basis_M.k, pair.basis_N.k)
+    C_MN = fmap_from_pointwise(maps.p2p_NM, pair.basis_M, pair.basis_N, k, k)
+    C_NM = fmap_from_pointwise(maps.p2p_MN, pair.basis_N, pair.basis_M, k, k)
+    return float(np.linalg.norm(C_NM @ C_MN - np.eye(k)) / np.sqrt(k))
+
+
+def compare(refined: MapQuality, start: MapQuality) -> list[str]:
+    """The figures on which ``refined`` is worse than ``start`` by more than :data:`TOLERANCE`, each as
+    ``"name a -> b"``; empty when the refinement made no figure worse."""
+    worse = []
+    for name, slack in TOLERANCE.items():
+        before, after = getattr(start, name), getattr(refined, name)
+        if before is None or after is None:
+            continue
+        change = before - after if name in HIGHER_IS_BETTER else after - before
+        if change > slack:
+            worse.append(f"{name} {before:.4g} -> {after:.4g}")
+    return worse
+
+
+def _to_curve(points: np.ndarray, curve: np.ndarray) -> np.ndarray:
+    return cKDTree(curve).query(points)[0]
