@@ -125,6 +125,12 @@ def get_map(session_id: str, services: ServicesDep, user: CurrentUser) -> MapRes
     )
 
 
+def _float32_rows(headers: dict) -> dict:
+    """The responses of a route answering float32 rows per target vertex, with ``headers``."""
+    binary = {"application/octet-stream": {"schema": {"type": "string", "format": "binary"}}}
+    return {200: {"content": binary, "headers": headers}, **ERRORS}
+
+
 FILE_IDS = r"^[0-9]{1,10}(,[0-9]{1,10})*$"  # ten digits at most: no id beyond int64 reaches numpy
 TRANSFER_HEADERS = {
     "X-Shape": {"description": "n,d: rows (target vertices) and values per row", "schema": {"type": "string"}},
@@ -132,15 +138,7 @@ TRANSFER_HEADERS = {
 }
 
 
-@router.get(
-    "/sessions/{session_id}/transfer",
-    response_class=Response,
-    responses={
-        200: {"content": {"application/octet-stream": {"schema": {"type": "string", "format": "binary"}}},
-              "headers": TRANSFER_HEADERS},
-        **ERRORS,
-    },
-)
+@router.get("/sessions/{session_id}/transfer", response_class=Response, responses=_float32_rows(TRANSFER_HEADERS))
 def get_transfer(
     session_id: str,
     services: ServicesDep,
@@ -160,6 +158,42 @@ def get_transfer(
     values, revision = services.sessions.transfer(session_id, function, _parse_ids(vertices))
     headers = {"X-Shape": f"{values.shape[0]},{values.shape[1]}", "X-Revision": str(revision)}
     return Response(values.astype("<f4").tobytes(), media_type="application/octet-stream", headers=headers)
+
+
+QUALITY_HEADERS = {
+    "X-Shape": {"description": "n,1: rows (target vertices)", "schema": {"type": "string"}},
+    "X-Revision": {"description": "the session revision the maps had", "schema": {"type": "string"}},
+    "X-Score": {
+        "description": "the drift averaged over the target's area, in units of sqrt(area): 0 when the maps are "
+        "exact inverses; lower is better",
+        "schema": {"type": "string"},
+    },
+    **{
+        f"X-Worst-{role.title()}": {"description": f"file id of the {role} vertex that drifts furthest",
+                                     "schema": {"type": "string"}}
+        for role in ("target", "source")
+    },
+}
+
+
+@router.get("/sessions/{session_id}/quality", response_class=Response, responses=_float32_rows(QUALITY_HEADERS))
+def get_quality(session_id: str, services: ServicesDep, user: CurrentUser) -> Response:
+    """How well the live maps agree, without ground truth: each target vertex carried to the source by ``C_NM``
+    and back by ``C_MN`` should land where it started; how far it lands (its *drift*, in units of the target's
+    sqrt(area)) is returned as float32 little-endian, one row per target vertex in internal order (as
+    ``GET /shapes/{id}/mesh``). Large drift marks where no curve constrains the maps yet: the vertex that drifts
+    furthest on each shape (headers ``X-Worst-Target``, ``X-Worst-Source``, file ids) is where a new curve helps
+    most. ``X-Score`` is the area-weighted mean drift on the target; ``X-Revision`` the session revision."""
+    session_for(services, user, session_id, "read")
+    quality = services.sessions.quality(session_id)
+    headers = {
+        "X-Shape": f"{len(quality.drift)},1",
+        "X-Revision": str(quality.revision),
+        "X-Score": f"{quality.score:.6g}",
+        "X-Worst-Target": str(quality.worst_target),
+        "X-Worst-Source": str(quality.worst_source),
+    }
+    return Response(quality.drift.astype("<f4").tobytes(), media_type="application/octet-stream", headers=headers)
 
 
 @router.post(

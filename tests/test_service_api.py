@@ -91,3 +91,16 @@ def test_transfers_are_float32_rows_per_target_vertex(server, function, columns)
     assert response.headers["X-Shape"] == f"4098,{columns}"
     values = np.frombuffer(response.content, "<f4").reshape(4098, columns)
     assert np.isfinite(values).all() and values.std() > 0
+
+
+def test_quality_is_the_round_trip_drift_per_target_vertex(server):
+    server.client.post(f"/sessions/{server.session}/curves", json={"source": [19, 432], "target": [19, 432]})
+    revision = server.client.get(f"/sessions/{server.session}").json()["revision"]
+    response = server.client.get(f"/sessions/{server.session}/quality").raise_for_status()
+    assert response.headers["X-Shape"] == "4098,1" and response.headers["X-Revision"] == str(revision)
+    drift = np.frombuffer(response.content, "<f4")
+    assert drift.shape == (4098,) and np.isfinite(drift).all() and drift.min() >= 0 and drift.std() > 0
+    assert drift.min() <= float(response.headers["X-Score"]) <= drift.max()
+    for side in ("Target", "Source"):
+        assert 0 <= int(response.headers[f"X-Worst-{side}"]) < 4098
+    assert drift[int(response.headers["X-Worst-Target"])] == drift.max()  # the demo meshes keep every file id

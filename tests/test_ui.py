@@ -133,6 +133,45 @@ def test_click_curves_delete_refine_and_download(page, demo):
     np.testing.assert_allclose(C, np.array(live["C_source_to_target"]), rtol=0, atol=1e-12)
 
 
+def test_the_quality_overlay_tints_the_target_and_follows_every_edit(page, demo):
+    def shown_quality() -> dict:
+        page.wait_for_function(
+            "(revision) => window.curvefm.quality && window.curvefm.quality.revision === revision",
+            arg=session(demo)["revision"],
+        )
+        return page.evaluate("window.curvefm.quality")
+
+    def served_quality():
+        return demo.client.get(f"/sessions/{DEMO_SESSION}/quality").raise_for_status().headers
+
+    first = shown_quality()
+    served = served_quality()
+    assert first["score"] == pytest.approx(float(served["X-Score"]), rel=1e-5)
+    assert "round-trip drift" in page.text_content("#status-line")
+    assert page.evaluate("window.curvefm.highlighted('target')") is None  # the overlay is off by default
+
+    page.uncheck("#show-curves")
+    before = canvas_pixels(page, "target")
+    page.check("#show-quality")
+    next_frames(page)
+    screenshot(page, "06-quality-overlay")
+    changed = changed_fraction(before, canvas_pixels(page, "target"))
+    assert changed > MIN_CHANGED, f"the overlay barely tinted the target ({changed:.4f})"
+    assert page.evaluate("window.curvefm.highlighted('target')") == int(served["X-Worst-Target"])
+    assert page.evaluate("window.curvefm.highlighted('source')") == int(served["X-Worst-Source"])
+
+    (a, b), = endpoint_pairs(pickable_vertices(page), 1, seed=3)
+    click_curve(page, [a, b])
+    after_edit = shown_quality()
+    assert after_edit["score"] == pytest.approx(float(served_quality()["X-Score"]), rel=1e-5)
+    assert after_edit["score"] != first["score"]
+    assert f"{100 * after_edit['score']:.1f}%" in page.text_content("#status-line")
+
+    page.uncheck("#show-quality")
+    next_frames(page)
+    assert page.evaluate("window.curvefm.highlighted('target')") is None
+
+
 def test_errors_are_shown_and_the_page_stays_usable(page, demo):
     page.click("#pair-panel summary")  # upload lives in the shapes panel, folded while a session is open
     page.set_input_files("#upload-input", files=[{"name": "notes.txt", "mimeType": "text/plain", "buffer": b"hi"}])

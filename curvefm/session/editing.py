@@ -14,6 +14,7 @@ from __future__ import annotations
 import secrets
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
@@ -42,6 +43,19 @@ class MapSummary(BaseModel):
     n_curves: int
     k: int
     solve_ms: float = Field(description="time to update both maps for this edit")
+
+
+@dataclass(frozen=True)
+class MapQuality:
+    """How far the live maps are from being each other's inverse (:mod:`curvefm.fmap.round_trip`): ``drift`` per
+    target vertex (float32, internal order, units of ``sqrt(area)``), its area-weighted mean ``score``, and the
+    **file** ids of the vertex that drifts furthest on each shape (where a new curve helps most)."""
+
+    drift: np.ndarray
+    score: float
+    worst_target: int
+    worst_source: int
+    revision: int
 
 
 class SessionEditor:
@@ -147,6 +161,20 @@ class SessionEditor:
         carried = live.transfers.get(key, lambda: _projected(live, function, vertices))
         values = carried.apply(C_MN)
         return np.ascontiguousarray(values.reshape(len(values), -1), dtype=np.float32), revision
+
+    def quality(self, session_id: str) -> MapQuality:
+        """The round-trip quality of the live maps. It needs ``C_NM``, which an interactive solver solves now if
+        the last edit deferred it."""
+        with self.live.using(session_id) as live:
+            C_MN, C_NM, revision, measure = live.solver.C_MN, live.solver.C_NM, live.record.revision, live.round_trip
+        found = measure.measure(C_MN, C_NM)
+        return MapQuality(
+            drift=found.target,
+            score=found.score,
+            worst_target=int(live.pair.mesh_N.file_ids[found.worst_target]),
+            worst_source=int(live.pair.mesh_M.file_ids[found.worst_source]),
+            revision=revision,
+        )
 
     # -- internals ----------------------------------------------------------------------------------------
     def _check_shapes(self, record: SessionRecord) -> None:

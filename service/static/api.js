@@ -89,6 +89,18 @@ export const api = {
     const columns = Number(headers.get("X-Shape").split(",")[1]);
     return { values: new Float32Array(buffer), columns, revision: Number(headers.get("X-Revision")) };
   },
+  /** The live maps' round trip per target vertex (see GET /sessions/{id}/quality): { drift: Float32Array,
+   * score, worstTarget, worstSource (file ids), revision }. */
+  async quality(id) {
+    const { buffer, headers } = await request("GET", `/sessions/${enc(id)}/quality`, { as: "binary" });
+    return {
+      drift: new Float32Array(buffer),
+      score: Number(headers.get("X-Score")),
+      worstTarget: Number(headers.get("X-Worst-Target")),
+      worstSource: Number(headers.get("X-Worst-Source")),
+      revision: Number(headers.get("X-Revision")),
+    };
+  },
   refine: (id, converter, params) => request("POST", `/sessions/${enc(id)}/refine`, { json: { converter, params } }),
 
   job: (id) => request("GET", `/jobs/${enc(id)}`),

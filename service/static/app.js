@@ -19,6 +19,7 @@ import {
 import { logOut, watchLogin } from "./controllers/login.js";
 import { openPair, upload } from "./controllers/pair.js";
 import { cancelRefine, downloadLiveMap, refine } from "./controllers/refine.js";
+import { toggleQuality } from "./controllers/quality.js";
 import { chooseSession, shareSession } from "./controllers/session.js";
 import { start } from "./controllers/startup.js";
 import { chooseTarget, setTexture, state } from "./store.js";
@@ -64,6 +65,7 @@ function bindControls() {
   on("reset-view", "click", reorient);
   on("link-cameras", "change", (event) => linkCameras(event.target.checked));
   on("show-curves", "change", (event) => showCurveTubes(event.target.checked));
+  on("show-quality", "change", (event) => toggleQuality(event.target.checked));
   on("texture-input", "change", (event) => useTextureImage(event.target));
   // Refine & export
   on("converter-select", "change", () => showParameters("converter"));
@@ -85,6 +87,15 @@ function installTestHooks() {
     vertexToScreen(side, fileId) {
       const { mesh } = state.shapes[side];
       return viewports[side].vertexToScreen(mesh.fileToInternal[fileId]);
+    },
+    get quality() {
+      const { quality } = state;
+      return quality && { score: quality.score, revision: quality.revision };
+    },
+    /** The file id of the vertex ringed on one side as the weakest region, or null. */
+    highlighted(side) {
+      const vertex = viewports[side].highlightedVertex;
+      return vertex >= 0 ? state.shapes[side].mesh.fileIds[vertex] : null;
     },
     screenToVertex(side, x, y) {
       const vertex = viewports[side].pick(x, y);

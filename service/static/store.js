@@ -14,6 +14,8 @@ export const state = {
   pickingRegion: false, // the next click on the source chooses the region
   pointwise: null, // { p2p: Int32Array (target internal -> source internal), revision, converter }
   texture: null, // the image carried as "uv" (a THREE texture)
+  quality: null, // the live maps' round trip (api.quality) of some revision, or null
+  showQuality: false, // the target is tinted by the round-trip drift and the weakest regions are ringed
   selected: null, // curve id drawn thicker
   // The clicks of the curve pair being entered, internal vertex ids per side. A plain click adds a point, and
   // a plain click after the first closes that side; Shift+click adds a waypoint. Clicking a closed side starts
@@ -49,6 +51,7 @@ export function setPlugins(plugins) {
 /** A session was loaded with its shapes: what belonged to the session shown before is dropped. */
 export function sessionOpened(session, shapes) {
   Object.assign(state, { session, shapes, region: null, pickingRegion: state.fn === "indicator", pointwise: null });
+  state.quality = null;
   Object.assign(state, { selected: null, map: "functional", history: [], pending: noClicks() });
 }
 
@@ -152,6 +155,14 @@ export function setMap(map) {
 
 export function setPointwise(pointwise) {
   state.pointwise = pointwise;
+}
+
+export function setQuality(quality) {
+  state.quality = quality;
+}
+
+export function setShowQuality(show) {
+  state.showQuality = show;
 }
 
 export function setTexture(texture) {

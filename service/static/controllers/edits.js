@@ -8,6 +8,7 @@ import { showMapChoice, showStatus } from "../views/page.js";
 import { paint, viewports } from "../views/viewports.js";
 import { resync } from "./connection.js";
 import { carriedRows } from "./feedback.js";
+import { refreshQuality } from "./quality.js";
 
 /** The session's edits: call the service, then keep the local record in step with its answer. */
 export const edits = {
@@ -58,6 +59,7 @@ export async function runEdit(clickTime, kind, failure, perform) {
       drawMs: drawnAt - fetchedAt,
       solveMs: edit.map.solve_ms,
     });
+    refreshQuality(); // after the texture: the reverse map it needs is solved while the user looks
   } catch (error) {
     showPending();
     report(error, failure);

@@ -19,6 +19,7 @@ import {
 } from "../views/page.js";
 import { orientViews, paint, showShapes, showSource, SIDES, viewports } from "../views/viewports.js";
 import { carriedRows } from "./feedback.js";
+import { refreshQuality } from "./quality.js";
 
 /** The session list's choice. */
 export function chooseSession(id) {
@@ -52,6 +53,7 @@ export async function openSession(id) {
     showSessionTitle();
     showSharing();
     showStatus();
+    refreshQuality();
   } catch (error) {
     report(error, `Session ${id} could not be opened`);
     showLoading(`Session ${id} could not be opened: ${error.message}`);

@@ -14,6 +14,7 @@ export function showLoading(text) {
 export function showStatus() {
   const parts = [];
   if (state.session) parts.push(`revision ${state.session.revision}`, `${state.session.curves.length} curves`);
+  if (state.quality) parts.push(`round-trip drift ${(100 * state.quality.score).toFixed(1)}% of √area`);
   const last = state.stats.last;
   if (last) {
     parts.push(

@@ -1,7 +1,7 @@
 // The two viewports, source and target (handles on the page's canvases, like DOM lookups), and what they show
 // of the store: the shapes, the carried function painted on the surfaces, the framing of the cameras.
 import { state } from "../store.js";
-import { rampColors, rgbColors } from "./colors.js";
+import { rampColors, rgbColors, tintColors } from "./colors.js";
 import { $ } from "./dom.js";
 import { FrameLoop } from "./frames.js";
 import { chooseAxes, Viewport } from "./viewer.js";
@@ -30,13 +30,45 @@ export function sourceValues(fn) {
   return state.region?.indicator ?? new Float32Array(source.mesh.nVertices);
 }
 
+/** A round-trip drift of this many sqrt(area) or more is shown fully red: fixed, so the overlay fades as the map
+ * improves (FAUST 000 -> 011 with one curve: mean 0.08, worst 0.3; with ten: mean 0.04, worst 0.13). */
+export const FULL_DRIFT = 0.1;
+
+const painted = {}; // side -> { fn, rows }: what paint() showed last, for repaint()
+
+/** Paint one side again as it was last painted (the quality overlay changed). */
+export function repaint(side) {
+  if (painted[side]) paint(side, painted[side].fn, painted[side].rows);
+}
+
 /** Paint function ``fn`` on one side: rows per vertex of that side (uv as the texture, xyz and indicator as
- * colours). */
+ * colours), on the target tinted by the maps' round-trip drift while the quality overlay is on. */
 export function paint(side, fn, rows) {
+  painted[side] = { fn, rows };
   const view = viewports[side];
-  if (fn === "uv") view.showTexture(state.texture, rows);
-  else if (fn === "xyz") view.showColors((out) => rgbColors(rows, out));
-  else view.showColors((out) => rampColors(rows, out));
+  const tint = side === "target" ? qualityTint() : null;
+  if (fn === "uv") {
+    view.showTexture(state.texture, rows, tint);
+    return;
+  }
+  const fill = fn === "xyz" ? rgbColors : rampColors;
+  view.showColors((out) => (tint ? tint(fill(rows, out)) : fill(rows, out)));
+}
+
+function qualityTint() {
+  const { quality, showQuality } = state;
+  if (!showQuality || !quality || state.map !== "functional" || quality.drift.length !== state.shapes.target.mesh.nVertices) return null;
+  return (out) => tintColors(quality.drift, out, FULL_DRIFT);
+}
+
+/** Ring the weakest region of the maps on both shapes (where a new curve helps most) while the overlay is on. */
+export function showWeakestRegions() {
+  const { quality, showQuality } = state;
+  for (const side of SIDES) {
+    const worst = quality?.[side === "target" ? "worstTarget" : "worstSource"];
+    const vertex = showQuality && worst !== undefined ? state.shapes[side].mesh.fileToInternal[worst] : -1;
+    viewports[side].setHighlight(vertex ?? -1);
+  }
 }
 
 export function showSource() {
