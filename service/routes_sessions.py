@@ -22,7 +22,7 @@ from curvefm.service.models import (
     SessionSummary,
 )
 from curvefm.service.openapi import SchemaRoute
-from curvefm.service.permissions import may_read, session_for
+from curvefm.service.permissions import job_for, may_read, session_for
 from curvefm.session import CurveSpec, SessionCreate, SessionRecord, TransferFunction
 from curvefm.spectral import check_k
 
@@ -40,6 +40,8 @@ REFINE_ERRORS = error_responses(
     429,
     described={400: "the converter's parameters contradict each other, e.g. k_final < k_init"},
 )
+
+MAX_CURVES_POSITION = 10**6  # beyond any list (max_curves bounds it): a position past the end means last
 
 
 @router.post("/sessions", status_code=201, response_model=SessionRecord, responses=QUOTA_ERRORS)
@@ -90,11 +92,25 @@ def delete_session(session_id: str, services: ServicesDep, user: CurrentUser) ->
 
 
 @router.post("/sessions/{session_id}/curves", status_code=201, response_model=CurveEdit, responses=ERRORS)
-def add_curve(session_id: str, body: CurveSpec, services: ServicesDep, user: CurrentUser) -> CurveEdit:
+def add_curve(
+    session_id: str,
+    body: CurveSpec,
+    services: ServicesDep,
+    user: CurrentUser,
+    curve_id: Annotated[
+        str | None,
+        Query(pattern=r"^c[1-9][0-9]{0,8}$", description="undoing a delete: the deleted curve's id (409 if the "
+              "session never handed it out or a curve holds it); by default the next id"),
+    ] = None,
+    position: Annotated[
+        int | None,
+        Query(ge=0, le=MAX_CURVES_POSITION, description="where in the curve list (0: first); by default last"),
+    ] = None,
+) -> CurveEdit:
     """Trace a curve pair (waypoints joined by the tracer, or ``explicit`` vertex paths; file ids), update
     both maps, store the session, then answer with the traced paths and the new map summary."""
     session_for(services, user, session_id, "edit")
-    curve, summary = services.sessions.add_curve(session_id, body)
+    curve, summary = services.sessions.add_curve(session_id, body, curve_id, position)
     return CurveEdit(curve=curve, map=summary)
 
 
@@ -229,6 +245,19 @@ def refine(session_id: str, body: RefineRequest, services: ServicesDep, user: Cu
         charge(info.id)
     services.records.add_job(session_id, info.id)
     return job_model(info)
+
+
+@router.get("/sessions/{session_id}/refinements", response_model=list[JobInfoModel], responses=ERRORS)
+def list_refinements(session_id: str, services: ServicesDep, user: CurrentUser) -> list[JobInfoModel]:
+    """The refinement jobs run from the session that you may see (yours, and others' finished ones), oldest first.
+    A finished job's ``result.revision`` is the session revision its maps were computed from: once the session's
+    revision is past it, its maps are stale."""
+    session_for(services, user, session_id, "read")
+    visible = []
+    for job_id in services.records.jobs(session_id):
+        with contextlib.suppress(CurvefmError):  # not yours and not finished, or forgotten
+            visible.append(job_model(job_for(services, user, job_id)))
+    return visible
 
 
 def _discard_job(services: Services, job_id: str) -> None:

@@ -76,7 +76,13 @@ export const api = {
   session: (id) => request("GET", `/sessions/${enc(id)}`),
   createSession: (body) => request("POST", "/sessions", { json: body }),
   shareSession: (id, sharing) => request("PATCH", `/sessions/${enc(id)}`, { json: { sharing } }),
-  addCurve: (id, spec) => request("POST", `/sessions/${enc(id)}/curves`, { json: spec }),
+  /** Add a curve; undoing a delete gives back its id and place: { curveId, position } (both optional). */
+  addCurve(id, spec, { curveId = null, position = null } = {}) {
+    const query = new URLSearchParams();
+    if (curveId !== null) query.set("curve_id", curveId);
+    if (position !== null) query.set("position", String(position));
+    return request("POST", `/sessions/${enc(id)}/curves${query.size ? `?${query}` : ""}`, { json: spec });
+  },
   replaceCurve: (id, curveId, spec) =>
     request("PUT", `/sessions/${enc(id)}/curves/${enc(curveId)}`, { json: spec }),
   deleteCurve: (id, curveId) => request("DELETE", `/sessions/${enc(id)}/curves/${enc(curveId)}`),
@@ -101,6 +107,7 @@ export const api = {
       revision: Number(headers.get("X-Revision")),
     };
   },
+  refinements: (id) => request("GET", `/sessions/${enc(id)}/refinements`),
   refine: (id, converter, params) => request("POST", `/sessions/${enc(id)}/refine`, { json: { converter, params } }),
 
   job: (id) => request("GET", `/jobs/${enc(id)}`),

@@ -26,6 +26,7 @@ import { chooseTarget, setTexture, state } from "./store.js";
 import { checkerboardTexture } from "./views/colors.js";
 import { $ } from "./views/dom.js";
 import { showParameters } from "./views/forms.js";
+import { showRadius } from "./views/page.js";
 import { SIDES, viewports } from "./views/viewports.js";
 
 setTexture(checkerboardTexture());
@@ -60,6 +61,7 @@ function bindControls() {
   each('input[name="function"]', "change", (event) => selectFunction(event.target.value));
   each('input[name="map"]', "change", (event) => selectMap(event.target.value, event.timeStamp));
   on("region-radius", "change", (event) => changeRegionRadius(event.timeStamp));
+  on("region-radius", "input", (event) => showRadius(event.target.value));
   on("region-pick", "click", pickRegion);
   on("up-select", "change", reorient);
   on("reset-view", "click", reorient);

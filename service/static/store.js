@@ -21,7 +21,7 @@ export const state = {
   // a plain click after the first closes that side; Shift+click adds a waypoint. Clicking a closed side starts
   // it over. Sides may be entered in either order.
   pending: noClicks(),
-  history: [], // edits that can be undone, newest last: { kind: add | remove | replace, curveId, spec }
+  history: [], // edits that can be undone, newest last: { kind: add | remove | replace, curveId, spec, position }
   refineJob: null, // the id of the running refinement job
   pairInProgress: false, // the user is opening a pair (stop waiting for the demo's session)
   targetChosen: false, // the user chose the target shape (the lists no longer pick one)
@@ -74,8 +74,9 @@ export function chooseTarget() {
 }
 
 // -- curves --------------------------------------------------------------------------------------------------
-export function curveAdded(curve) {
-  state.session.curves.push(curve);
+/** A curve was added at ``position`` in the list (default: last). */
+export function curveAdded(curve, position = state.session.curves.length) {
+  state.session.curves.splice(position, 0, curve);
   state.session.next_curve = Math.max(state.session.next_curve, Number(curve.id.slice(1)) + 1);
 }
 
@@ -119,19 +120,15 @@ export function pendingEmpty() {
   return state.pending.points.source.length === 0 && state.pending.points.target.length === 0;
 }
 
-/** Remember an edit for undo: kind add | remove | replace, curve as it was before (after, for add). */
-export function recordEdit(kind, curve) {
-  state.history.push({ kind, curveId: curve.id, spec: curve.spec });
+/** Remember an edit for undo: kind add | remove | replace, curve as it was before (after, for add), and its place in
+ * the list before the edit (a deleted curve comes back there). */
+export function recordEdit(kind, curve, position) {
+  state.history.push({ kind, curveId: curve.id, spec: curve.spec, position });
 }
 
 /** The newest edit was undone. */
 export function dropNewestEdit() {
   state.history.pop();
-}
-
-/** A re-added curve got a new id: the older edits follow it. */
-export function renameInHistory(oldId, newId) {
-  for (const entry of state.history) if (entry.curveId === oldId) entry.curveId = newId;
 }
 
 // -- what the surfaces show ----------------------------------------------------------------------------------

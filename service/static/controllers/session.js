@@ -20,6 +20,7 @@ import {
 import { orientViews, paint, showShapes, showSource, SIDES, viewports } from "../views/viewports.js";
 import { carriedRows } from "./feedback.js";
 import { refreshQuality } from "./quality.js";
+import { restoreRefinement } from "./refine.js";
 
 /** The session list's choice. */
 export function chooseSession(id) {
@@ -54,6 +55,7 @@ export async function openSession(id) {
     showSharing();
     showStatus();
     refreshQuality();
+    restoreRefinement();
   } catch (error) {
     report(error, `Session ${id} could not be opened`);
     showLoading(`Session ${id} could not be opened: ${error.message}`);

@@ -91,14 +91,16 @@ export class Viewport {
     }
     geometry.computeBoundingSphere();
     // Lambert: matte shading shows the shape as well as a physically based material at two thirds of the cost
-    this.textured = new THREE.MeshLambertMaterial({ side: THREE.DoubleSide });
-    this.colored = new THREE.MeshLambertMaterial({ side: THREE.DoubleSide, vertexColors: true });
-    this.tinted = new THREE.MeshLambertMaterial({ side: THREE.DoubleSide, vertexColors: true }); // texture x colours
+    // the surface is drawn a little deeper than it is, so curve tubes lying in it show whole
+    const surface = { side: THREE.DoubleSide, polygonOffset: true, polygonOffsetFactor: 2, polygonOffsetUnits: 2 };
+    this.textured = new THREE.MeshLambertMaterial(surface);
+    this.colored = new THREE.MeshLambertMaterial({ ...surface, vertexColors: true });
+    this.tinted = new THREE.MeshLambertMaterial({ ...surface, vertexColors: true }); // texture x colours
     this.materials = [this.textured, this.colored, this.tinted];
     this.mesh = new THREE.Mesh(geometry, this.textured);
     this.surface.add(this.mesh);
     const { radius } = geometry.boundingSphere;
-    this.tubeRadius = 0.006 * radius;
+    this.tubeRadius = 0.011 * radius;
     this.markerGeometry?.dispose();
     this.markerGeometry = new THREE.SphereGeometry(3.5 * this.tubeRadius, 16, 12);
     this.highlight.scale.setScalar(0.09 * radius);
@@ -106,11 +108,13 @@ export class Viewport {
     this.frames.request(this);
   }
 
-  /** Turn the shape so its ``up`` axis points up and its ``towards`` axis at the viewer, scaled into the
-   * unit sphere and centred (linked viewports share this frame). Returns the half extents of its box. */
-  orient({ up, towards }) {
-    const side = new THREE.Vector3().crossVectors(AXES[up], AXES[towards]);
-    const rotation = new THREE.Matrix4().makeBasis(side, AXES[up], AXES[towards]).transpose();
+  /** Turn the shape so its ``up`` axis points up and its ``towards`` axis (negated when ``flip``) at the viewer,
+   * scaled into the unit sphere and centred (linked viewports share this frame). Returns the half extents of its
+   * box. */
+  orient({ up, towards, flip = false }) {
+    const facing = AXES[towards].clone().multiplyScalar(flip ? -1 : 1);
+    const side = new THREE.Vector3().crossVectors(AXES[up], facing);
+    const rotation = new THREE.Matrix4().makeBasis(side, AXES[up], facing).transpose();
     this.surface.quaternion.setFromRotationMatrix(rotation);
     this.surface.scale.setScalar(1 / this.mesh.geometry.boundingSphere.radius);
     this.surface.position.set(0, 0, 0);

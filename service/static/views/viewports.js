@@ -4,6 +4,7 @@ import { state } from "../store.js";
 import { rampColors, rgbColors, tintColors } from "./colors.js";
 import { $ } from "./dom.js";
 import { FrameLoop } from "./frames.js";
+import { bounds } from "../functions.js";
 import { chooseAxes, Viewport } from "./viewer.js";
 
 export const SIDES = ["source", "target"];
@@ -57,7 +58,8 @@ export function paint(side, fn, rows) {
 
 function qualityTint() {
   const { quality, showQuality } = state;
-  if (!showQuality || !quality || state.map !== "functional" || quality.drift.length !== state.shapes.target.mesh.nVertices) return null;
+  const fits = quality?.drift.length === state.shapes.target.mesh.nVertices;
+  if (!showQuality || !fits || state.map !== "functional") return null;
   return (out) => tintColors(quality.drift, out, FULL_DRIFT);
 }
 
@@ -75,10 +77,25 @@ export function showSource() {
   paint("source", state.fn, sourceValues(state.fn));
 }
 
-/** Turn both shapes as the Up control says and frame them with one camera distance, so that linked cameras
- * frame both. */
+/** Whether most of the source's curve vertices lie behind the middle along the axis that faces the viewer. */
+function curvesBehind(vertices, towards) {
+  const axis = ["x", "y", "z"].indexOf(towards);
+  const { low, high } = bounds(vertices);
+  const middle = (low[axis] + high[axis]) / 2;
+  const { fileToInternal } = state.shapes.source.mesh;
+  let balance = 0;
+  for (const curve of state.session?.curves ?? []) {
+    for (const id of curve.path_source) balance += Math.sign(vertices[3 * fileToInternal[id] + axis] - middle);
+  }
+  return balance < 0;
+}
+
+/** Turn both shapes as the Up control says, the side where the source's curves lie more towards the viewer, and
+ * frame them with one camera distance, so that linked cameras frame both. */
 export function orientViews() {
-  const axes = chooseAxes(state.shapes.source.mesh.vertices, $("up-select").value);
+  const { vertices } = state.shapes.source.mesh;
+  const axes = chooseAxes(vertices, $("up-select").value);
+  axes.flip = curvesBehind(vertices, axes.towards);
   const [source, target] = SIDES.map((side) => viewports[side].orient(axes));
   const both = source.max(target);
   for (const side of SIDES) viewports[side].resetCamera(both);
