@@ -22,7 +22,7 @@ from curvefm.service.models import (
     SessionSummary,
 )
 from curvefm.service.openapi import SchemaRoute
-from curvefm.service.permissions import may_read, session_for
+from curvefm.service.permissions import job_for, may_read, session_for
 from curvefm.session import CurveSpec, SessionCreate, SessionRecord, TransferFunction
 from curvefm.spectral import check_k
 
@@ -40,6 +40,8 @@ REFINE_ERRORS = error_responses(
     429,
     described={400: "the converter's parameters contradict each other, e.g. k_final < k_init"},
 )
+
+MAX_CURVES_POSITION = 10**6  # beyond any list (max_curves bounds it): a position past the end means last
 
 
 @router.post("/sessions", status_code=201, response_model=SessionRecord, responses=QUOTA_ERRORS)
@@ -90,11 +92,25 @@ def delete_session(session_id: str, services: ServicesDep, user: CurrentUser) ->
 
 
 @router.post("/sessions/{session_id}/curves", status_code=201, response_model=CurveEdit, responses=ERRORS)
-def add_curve(session_id: str, body: CurveSpec, services: ServicesDep, user: CurrentUser) -> CurveEdit:
+def add_curve(
+    session_id: str,
+    body: CurveSpec,
+    services: ServicesDep,
+    user: CurrentUser,
+    curve_id: Annotated[
+        str | None,
+        Query(pattern=r"^c[1-9][0-9]{0,8}$", description="undoing a delete: the deleted curve's id (409 if the "
+              "session never handed it out or a curve holds it); by default the next id"),
+    ] = None,
+    position: Annotated[
+        int | None,
+        Query(ge=0, le=MAX_CURVES_POSITION, description="where in the curve list (0: first); by default last"),
+    ] = None,
+) -> CurveEdit:
     """Trace a curve pair (waypoints joined by the tracer, or ``explicit`` vertex paths; file ids), update
     both maps, store the session, then answer with the traced paths and the new map summary."""
     session_for(services, user, session_id, "edit")
-    curve, summary = services.sessions.add_curve(session_id, body)
+    curve, summary = services.sessions.add_curve(session_id, body, curve_id, position)
     return CurveEdit(curve=curve, map=summary)
 
 
@@ -125,6 +141,12 @@ def get_map(session_id: str, services: ServicesDep, user: CurrentUser) -> MapRes
     )
 
 
+def _float32_rows(headers: dict) -> dict:
+    """The responses of a route answering float32 rows per target vertex, with ``headers``."""
+    binary = {"application/octet-stream": {"schema": {"type": "string", "format": "binary"}}}
+    return {200: {"content": binary, "headers": headers}, **ERRORS}
+
+
 FILE_IDS = r"^[0-9]{1,10}(,[0-9]{1,10})*$"  # ten digits at most: no id beyond int64 reaches numpy
 TRANSFER_HEADERS = {
     "X-Shape": {"description": "n,d: rows (target vertices) and values per row", "schema": {"type": "string"}},
@@ -134,15 +156,7 @@ TRANSFER_HEADERS = {
 }
 
 
-@router.get(
-    "/sessions/{session_id}/transfer",
-    response_class=Response,
-    responses={
-        200: {"content": {"application/octet-stream": {"schema": {"type": "string", "format": "binary"}}},
-              "headers": TRANSFER_HEADERS},
-        **ERRORS,
-    },
-)
+@router.get("/sessions/{session_id}/transfer", response_class=Response, responses=_float32_rows(TRANSFER_HEADERS))
 def get_transfer(
     session_id: str,
     services: ServicesDep,
@@ -164,6 +178,42 @@ def get_transfer(
     headers = {"X-Shape": f"{values.shape[0]},{values.shape[1]}", "X-Revision": str(revision),
                "X-Solve-Ms": f"{solve_ms:.3f}"}
     return Response(values.astype("<f4").tobytes(), media_type="application/octet-stream", headers=headers)
+
+
+QUALITY_HEADERS = {
+    "X-Shape": {"description": "n,1: rows (target vertices)", "schema": {"type": "string"}},
+    "X-Revision": {"description": "the session revision the maps had", "schema": {"type": "string"}},
+    "X-Score": {
+        "description": "the drift averaged over the target's area, in units of sqrt(area): 0 when the maps are "
+        "exact inverses; lower is better",
+        "schema": {"type": "string"},
+    },
+    **{
+        f"X-Worst-{role.title()}": {"description": f"file id of the {role} vertex that drifts furthest",
+                                     "schema": {"type": "string"}}
+        for role in ("target", "source")
+    },
+}
+
+
+@router.get("/sessions/{session_id}/quality", response_class=Response, responses=_float32_rows(QUALITY_HEADERS))
+def get_quality(session_id: str, services: ServicesDep, user: CurrentUser) -> Response:
+    """How well the live maps agree, without ground truth: each target vertex carried to the source by ``C_NM``
+    and back by ``C_MN`` should land where it started; how far it lands (its *drift*, in units of the target's
+    sqrt(area)) is returned as float32 little-endian, one row per target vertex in internal order (as
+    ``GET /shapes/{id}/mesh``). Large drift marks where no curve constrains the maps yet: the vertex that drifts
+    furthest on each shape (headers ``X-Worst-Target``, ``X-Worst-Source``, file ids) is where a new curve helps
+    most. ``X-Score`` is the area-weighted mean drift on the target; ``X-Revision`` the session revision."""
+    session_for(services, user, session_id, "read")
+    quality = services.sessions.quality(session_id)
+    headers = {
+        "X-Shape": f"{len(quality.drift)},1",
+        "X-Revision": str(quality.revision),
+        "X-Score": f"{quality.score:.6g}",
+        "X-Worst-Target": str(quality.worst_target),
+        "X-Worst-Source": str(quality.worst_source),
+    }
+    return Response(quality.drift.astype("<f4").tobytes(), media_type="application/octet-stream", headers=headers)
 
 
 @router.post(
@@ -199,6 +249,19 @@ def refine(session_id: str, body: RefineRequest, services: ServicesDep, user: Cu
         charge(info.id)
     services.records.add_job(session_id, info.id)
     return job_model(info)
+
+
+@router.get("/sessions/{session_id}/refinements", response_model=list[JobInfoModel], responses=ERRORS)
+def list_refinements(session_id: str, services: ServicesDep, user: CurrentUser) -> list[JobInfoModel]:
+    """The refinement jobs run from the session that you may see (yours, and others' finished ones), oldest first.
+    A finished job's ``result.revision`` is the session revision its maps were computed from: once the session's
+    revision is past it, its maps are stale."""
+    session_for(services, user, session_id, "read")
+    visible = []
+    for job_id in services.records.jobs(session_id):
+        with contextlib.suppress(CurvefmError):  # not yours and not finished, or forgotten
+            visible.append(job_model(job_for(services, user, job_id)))
+    return visible
 
 
 def _discard_job(services: Services, job_id: str) -> None:

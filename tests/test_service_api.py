@@ -105,3 +105,37 @@ def test_an_idle_connection_stays_open_longer_than_clients_keep_theirs(server):
         time.sleep(6)  # longer than uvicorn's default keep-alive (5 s)
         connection.sendall(request)
         assert connection.recv(4096).startswith(b"HTTP/1.1 200")
+
+
+def test_quality_is_the_round_trip_drift_per_target_vertex(server):
+    server.client.post(f"/sessions/{server.session}/curves", json={"source": [19, 432], "target": [19, 432]})
+    revision = server.client.get(f"/sessions/{server.session}").json()["revision"]
+    response = server.client.get(f"/sessions/{server.session}/quality").raise_for_status()
+    assert response.headers["X-Shape"] == "4098,1" and response.headers["X-Revision"] == str(revision)
+    drift = np.frombuffer(response.content, "<f4")
+    assert drift.shape == (4098,) and np.isfinite(drift).all() and drift.min() >= 0 and drift.std() > 0
+    assert drift.min() <= float(response.headers["X-Score"]) <= drift.max()
+    for side in ("Target", "Source"):
+        assert 0 <= int(response.headers[f"X-Worst-{side}"]) < 4098
+    assert drift[int(response.headers["X-Worst-Target"])] == drift.max()  # the demo meshes keep every file id
+
+
+def test_a_deleted_curve_comes_back_under_its_id_at_its_place(server):
+    url = f"/sessions/{server.session}/curves"
+    ids = [server.client.post(url, json={"source": [19, 432 + i], "target": [19, 432 + i]}).json()["curve"]["id"]
+           for i in range(3)]
+    before = [c["id"] for c in server.client.get(f"/sessions/{server.session}").json()["curves"]]
+    gone = server.client.delete(f"{url}/{ids[1]}").raise_for_status()
+    assert gone.json()["map"]["n_curves"] == len(before) - 1
+    place = before.index(ids[1])
+    spec = {"source": [19, 433], "target": [19, 433]}
+    back = server.client.post(url, params={"curve_id": ids[1], "position": place}, json=spec).raise_for_status()
+    assert back.json()["curve"]["id"] == ids[1]
+    record = server.client.get(f"/sessions/{server.session}").json()
+    assert [c["id"] for c in record["curves"]] == before
+    for taken in (ids[1], f"c{record['next_curve']}"):  # in use; never handed out
+        refused = server.client.post(url, params={"curve_id": taken}, json=spec)
+        assert refused.status_code == 409 and taken in refused.json()["detail"]
+    assert server.client.post(url, params={"curve_id": "x1"}, json=spec).status_code == 422
+    fresh = server.client.post(url, json=spec).raise_for_status().json()["curve"]["id"]
+    assert fresh == f"c{record['next_curve']}"  # giving an id back does not move the next one

@@ -133,6 +133,103 @@ def test_click_curves_delete_refine_and_download(page, demo):
     np.testing.assert_allclose(C, np.array(live["C_source_to_target"]), rtol=0, atol=1e-12)
 
 
+def test_the_quality_overlay_tints_the_target_and_follows_every_edit(page, demo):
+    def shown_quality() -> dict:
+        page.wait_for_function(
+            "(revision) => window.curvefm.quality && window.curvefm.quality.revision === revision",
+            arg=session(demo)["revision"],
+        )
+        return page.evaluate("window.curvefm.quality")
+
+    def served_quality():
+        return demo.client.get(f"/sessions/{DEMO_SESSION}/quality").raise_for_status().headers
+
+    first = shown_quality()
+    served = served_quality()
+    assert first["score"] == pytest.approx(float(served["X-Score"]), rel=1e-5)
+    assert "round-trip drift" in page.text_content("#status-line")
+    assert page.evaluate("window.curvefm.highlighted('target')") is None  # the overlay is off by default
+
+    page.uncheck("#show-curves")
+    before = canvas_pixels(page, "target")
+    page.check("#show-quality")
+    next_frames(page)
+    screenshot(page, "06-quality-overlay")
+    changed = changed_fraction(before, canvas_pixels(page, "target"))
+    assert changed > MIN_CHANGED, f"the overlay barely tinted the target ({changed:.4f})"
+    assert page.evaluate("window.curvefm.highlighted('target')") == int(served["X-Worst-Target"])
+    assert page.evaluate("window.curvefm.highlighted('source')") == int(served["X-Worst-Source"])
+
+    (a, b), = endpoint_pairs(pickable_vertices(page), 1, seed=3)
+    click_curve(page, [a, b])
+    after_edit = shown_quality()
+    assert after_edit["score"] == pytest.approx(float(served_quality()["X-Score"]), rel=1e-5)
+    assert after_edit["score"] != first["score"]
+    assert f"{100 * after_edit['score']:.1f}%" in page.text_content("#status-line")
+
+    page.uncheck("#show-quality")
+    next_frames(page)
+    assert page.evaluate("window.curvefm.highlighted('target')") is None
+
+
+def listed_curves(page) -> list[str]:
+    return page.eval_on_selector_all("#curve-list li", "(items) => items.map((item) => item.dataset.curveId)")
+
+
+def test_undo_after_delete_brings_the_curve_back_with_its_id_colour_and_place(page, demo):
+    ids = listed_curves(page)
+    middle = ids[len(ids) // 2]
+    item = f'#curve-list li[data-curve-id="{middle}"]'
+    colour = page.eval_on_selector(f"{item} .swatch", "(swatch) => swatch.style.background")
+    page.click(f'{item} button[data-action="delete"]')
+    page.wait_for_selector(item, state="detached")
+    assert f"{len(ids) - 1} curves" in page.text_content("#session-select option:checked")  # the list follows
+    page.click("#undo-button")
+    page.wait_for_selector(item)
+    assert listed_curves(page) == ids == [curve["id"] for curve in session(demo)["curves"]]
+    assert page.eval_on_selector(f"{item} .swatch", "(swatch) => swatch.style.background") == colour
+    assert f"{len(ids)} curves" in page.text_content("#session-select option:checked")
+    assert "vertices on the source" in page.get_attribute(f"{item} .curve-label", "title")
+
+
+def test_refinement_results_come_back_after_a_reload_and_turn_stale_after_an_edit(page, demo):
+    page.select_option("#converter-select", "nearest-neighbor")
+    page.click("#refine-button")
+    page.wait_for_selector("#refine-progress .progress-row.ok", timeout=60_000)
+    revision = session(demo)["revision"]
+    page.reload()
+    page.wait_for_function("() => window.curvefm && window.curvefm.ready", timeout=60_000)
+    page.wait_for_selector('#downloads a[download="map_target_to_source.txt"]')
+    page.wait_for_selector('input[name="map"][value="pointwise"]:not([disabled])')
+    assert f"revision {revision})" in page.text_content("#pointwise-label")
+    assert "stale" not in page.text_content("#refine-note")
+    (a, b), = endpoint_pairs(pickable_vertices(page), 1, seed=4)
+    click_curve(page, [a, b])
+    page.wait_for_selector("#refine-note.stale")
+    assert f"now revision {session(demo)['revision']}" in page.text_content("#pointwise-label")
+    screenshot(page, "07-stale-refinement-after-reload")
+
+
+def test_the_page_is_usable_760_pixels_wide(page, demo):
+    page.set_viewport_size({"width": 760, "height": 860})
+    next_frames(page)
+    assert page.evaluate("document.documentElement.scrollWidth") <= 760
+    for side in ("source", "target"):
+        box = page.locator(f"#{side}-view canvas").bounding_box()
+        assert box["width"] > 300 and box["height"] > 200 and box["x"] + box["width"] <= 760, (side, box)
+    hint = page.locator("#hint").bounding_box()
+    assert hint["x"] >= 0 and hint["x"] + hint["width"] <= 760, hint
+    (a, b), = endpoint_pairs(pickable_vertices(page), 1, seed=5, min_distance=40)
+    click_curve(page, [a, b])
+    page.select_option("#converter-select", "rhm")
+    labels = page.text_content("#converter-params")
+    assert "init_zoomout" not in labels and "Init zoomout" in labels
+    page.check('input[name="function"][value="indicator"]')
+    page.fill("#region-radius", "12")
+    assert page.text_content("#region-radius-value") == "12% of the size"
+    screenshot(page, "08-narrow-760px")
+
+
 def test_errors_are_shown_and_the_page_stays_usable(page, demo):
     page.click("#pair-panel summary")  # upload lives in the shapes panel, folded while a session is open
     page.set_input_files("#upload-input", files=[{"name": "notes.txt", "mimeType": "text/plain", "buffer": b"hi"}])

@@ -1,5 +1,6 @@
 """Functional maps: curve restriction, the curve-constrained solver (column-separable exact solves), the
-paper's CG and an L-BFGS reference, the descriptor baselines' energies, and function transfer through a map.
+paper's CG and an L-BFGS reference, the descriptor baselines' energies, function transfer through a map, and the
+maps' round-trip quality (no ground truth needed).
 """
 
 from curvefm.fmap.baselines import (
@@ -23,6 +24,7 @@ from curvefm.fmap.column_solve import (
 from curvefm.fmap.maps import FunctionalMaps, Hints, curve_endpoints
 from curvefm.fmap.reference_solvers import conjugate_gradient_solve, quasi_newton_solve
 from curvefm.fmap.restriction import DEFAULT_SAMPLES, resample, restrict, restriction_operator
+from curvefm.fmap.round_trip import RoundTrip, RoundTripQuality
 from curvefm.fmap.solver import DEFAULT_ALPHA, DEFAULT_K, CurveMapSolver, CurveTerm
 from curvefm.fmap.transfer import FunctionTransfer, transfer
 
@@ -39,6 +41,8 @@ __all__ = [
     "Hints",
     "PARALLEL_MIN_SIZE",
     "RIDGE",
+    "RoundTrip",
+    "RoundTripQuality",
     "balanced_weights",
     "check_method_k",
     "column_diagonals",

@@ -11,7 +11,7 @@ curves a user draws, kept as a record on disk and, in a long-running process, li
 * ``live``: :class:`LiveSessions`, the bounded in-memory cache of solvers, shapes, bases and transfers, with a
   fixed set of locks;
 * ``editing``: :class:`SessionEditor`, the operations (create, add / replace / remove a curve, maps,
-  transfer), each written to disk before it returns;
+  transfer, the maps' round-trip quality), each edit written to disk before it returns;
 * ``limits``: :class:`SessionLimits`, the configurable bounds on what one request may ask (waypoints, path
   vertices, curves, ``k``).
 """
@@ -25,7 +25,7 @@ from curvefm.session.curves import (
     trace_curve,
     trace_pair,
 )
-from curvefm.session.editing import MapSummary, SessionEditor, TransferFunction, source_function
+from curvefm.session.editing import MapQuality, MapSummary, SessionEditor, TransferFunction, source_function
 from curvefm.session.limits import SessionLimits
 from curvefm.session.live import LiveSession, LiveSessions, UnknownShape
 from curvefm.session.pair import (
@@ -63,6 +63,7 @@ __all__ = [
     "CurvesFile",
     "LiveSession",
     "LiveSessions",
+    "MapQuality",
     "MapSize",
     "MapSummary",
     "MissingBasis",

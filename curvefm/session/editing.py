@@ -14,13 +14,14 @@ from __future__ import annotations
 import secrets
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 from pydantic import BaseModel, Field
 
 from curvefm import registry
-from curvefm.errors import NotFound, shown
+from curvefm.errors import Conflict, NotFound, shown
 from curvefm.fmap import FunctionTransfer
 from curvefm.geometry import Mesh, texture_coordinates
 from curvefm.registry import Plugin
@@ -45,6 +46,19 @@ class MapSummary(BaseModel):
         description="time this edit spent updating the maps' curve terms; each map is solved when first read "
         "after the edit (the transfer's X-Solve-Ms header says how long that took)"
     )
+
+
+@dataclass(frozen=True)
+class MapQuality:
+    """How far the live maps are from being each other's inverse (:mod:`curvefm.fmap.round_trip`): ``drift`` per
+    target vertex (float32, internal order, units of ``sqrt(area)``), its area-weighted mean ``score``, and the
+    **file** ids of the vertex that drifts furthest on each shape (where a new curve helps most)."""
+
+    drift: np.ndarray
+    score: float
+    worst_target: int
+    worst_source: int
+    revision: int
 
 
 class SessionEditor:
@@ -86,17 +100,26 @@ class SessionEditor:
         return self.records.read(session_id)
 
     # -- edits --------------------------------------------------------------------------------------------
-    def add_curve(self, session_id: str, spec: CurveSpec) -> tuple[CurveRecord, MapSummary]:
+    def add_curve(
+        self, session_id: str, spec: CurveSpec, curve_id: str | None = None, position: int | None = None
+    ) -> tuple[CurveRecord, MapSummary]:
+        """Add a curve under the next id, at the end of the list. Undoing a delete gives the deleted curve's
+        ``curve_id`` back (only an id the session handed out and no curve holds now) and its ``position`` in the
+        list (clamped to the list)."""
         record = self.record(session_id)
         self._check_room(record)
         traced = self._trace(record, spec)
         with self.live.editing(session_id) as live:
             self._check_room(live.record)
-            curve = traced.model_copy(update={"id": f"c{live.record.next_curve}"})
+            curve = traced.model_copy(update={"id": curve_id or f"c{live.record.next_curve}"})
+            if curve_id is not None:
+                _check_returned_id(live.record, curve_id)
             started = time.perf_counter()
             live.solver.add_curve(*internal_paths(live.pair, curve), weight=spec.weight, curve_id=curve.id)
             update_ms = _ms_since(started)
-            self._commit(live, curves=[*live.record.curves, curve], next_curve=live.record.next_curve + 1)
+            curves = list(live.record.curves)
+            curves.insert(len(curves) if position is None else position, curve)
+            self._commit(live, curves=curves, next_curve=live.record.next_curve + (curve_id is None))
             return curve, _summary(live, update_ms)
 
     def replace_curve(self, session_id: str, curve_id: str, spec: CurveSpec) -> tuple[CurveRecord, MapSummary]:
@@ -153,6 +176,20 @@ class SessionEditor:
         carried = live.transfers.get(key, lambda: _projected(live, function, vertices))
         values = carried.apply(C_MN)
         return np.ascontiguousarray(values.reshape(len(values), -1), dtype=np.float32), revision, solve_ms
+
+    def quality(self, session_id: str) -> MapQuality:
+        """The round-trip quality of the live maps. It needs ``C_NM``, which an interactive solver solves now if
+        the last edit deferred it."""
+        with self.live.using(session_id) as live:
+            C_MN, C_NM, revision, measure = live.solver.C_MN, live.solver.C_NM, live.record.revision, live.round_trip
+        found = measure.measure(C_MN, C_NM)
+        return MapQuality(
+            drift=found.target,
+            score=found.score,
+            worst_target=int(live.pair.mesh_N.file_ids[found.worst_target]),
+            worst_source=int(live.pair.mesh_M.file_ids[found.worst_source]),
+            revision=revision,
+        )
 
     # -- internals ----------------------------------------------------------------------------------------
     def _check_shapes(self, record: SessionRecord) -> None:
@@ -226,6 +263,15 @@ def _require_curve(record: SessionRecord, curve_id: str) -> None:
     if all(c.id != curve_id for c in record.curves):
         ids = ", ".join(c.id for c in record.curves) or "none yet"
         raise NotFound(f"no curve '{shown(curve_id)}' in session {record.id}; its curves: {ids}")
+
+
+def _check_returned_id(record: SessionRecord, curve_id: str) -> None:
+    """``curve_id`` (``c<n>``) was handed out by the session and is free again (its curve was deleted)."""
+    if any(c.id == curve_id for c in record.curves):
+        raise Conflict(f"curve id '{shown(curve_id)}' is in use in session {record.id}; give another or none")
+    if not curve_id.startswith("c") or not curve_id[1:].isdigit() or int(curve_id[1:]) >= record.next_curve:
+        raise Conflict(f"session {record.id} never had a curve '{shown(curve_id)}'; only a deleted curve's id can "
+                       "be given back (to undo its deletion), or none for a new one")
 
 
 def _summary(live: LiveSession, update_ms: float) -> MapSummary:

@@ -23,10 +23,11 @@ from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass
+from functools import cached_property
 
 from curvefm.cache import LRU
 from curvefm.errors import NotFound, shown
-from curvefm.fmap import CurveMapSolver, FunctionTransfer
+from curvefm.fmap import CurveMapSolver, FunctionTransfer, RoundTripQuality
 from curvefm.geometry import Mesh
 from curvefm.session.pair import BasisNeed, ShapePair, basis_needs, build_solver, internal_paths, load_basis
 from curvefm.session.record import SessionRecord
@@ -51,6 +52,11 @@ class LiveSession:
     pair: ShapePair
     solver: CurveMapSolver
     transfers: LRU[FunctionTransfer]  # by (function, vertices): the function on M projected on M's basis
+
+    @cached_property
+    def round_trip(self) -> RoundTripQuality:
+        """The maps' round-trip quality measure, built on first use (under the session's lock)."""
+        return RoundTripQuality(self.pair.mesh_M, self.solver.basis_M, self.pair.mesh_N, self.solver.basis_N)
 
 
 class LiveSessions:

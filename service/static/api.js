@@ -76,7 +76,13 @@ export const api = {
   session: (id) => request("GET", `/sessions/${enc(id)}`),
   createSession: (body) => request("POST", "/sessions", { json: body }),
   shareSession: (id, sharing) => request("PATCH", `/sessions/${enc(id)}`, { json: { sharing } }),
-  addCurve: (id, spec) => request("POST", `/sessions/${enc(id)}/curves`, { json: spec }),
+  /** Add a curve; undoing a delete gives back its id and place: { curveId, position } (both optional). */
+  addCurve(id, spec, { curveId = null, position = null } = {}) {
+    const query = new URLSearchParams();
+    if (curveId !== null) query.set("curve_id", curveId);
+    if (position !== null) query.set("position", String(position));
+    return request("POST", `/sessions/${enc(id)}/curves${query.size ? `?${query}` : ""}`, { json: spec });
+  },
   replaceCurve: (id, curveId, spec) =>
     request("PUT", `/sessions/${enc(id)}/curves/${enc(curveId)}`, { json: spec }),
   deleteCurve: (id, curveId) => request("DELETE", `/sessions/${enc(id)}/curves/${enc(curveId)}`),
@@ -91,6 +97,19 @@ export const api = {
     const revision = Number(headers.get("X-Revision"));
     return { values: new Float32Array(buffer), columns, revision, solveMs: Number(headers.get("X-Solve-Ms")) };
   },
+  /** The live maps' round trip per target vertex (see GET /sessions/{id}/quality): { drift: Float32Array,
+   * score, worstTarget, worstSource (file ids), revision }. */
+  async quality(id) {
+    const { buffer, headers } = await request("GET", `/sessions/${enc(id)}/quality`, { as: "binary" });
+    return {
+      drift: new Float32Array(buffer),
+      score: Number(headers.get("X-Score")),
+      worstTarget: Number(headers.get("X-Worst-Target")),
+      worstSource: Number(headers.get("X-Worst-Source")),
+      revision: Number(headers.get("X-Revision")),
+    };
+  },
+  refinements: (id) => request("GET", `/sessions/${enc(id)}/refinements`),
   refine: (id, converter, params) => request("POST", `/sessions/${enc(id)}/refine`, { json: { converter, params } }),
 
   job: (id) => request("GET", `/jobs/${enc(id)}`),

@@ -19,12 +19,14 @@ import {
 import { logOut, watchLogin } from "./controllers/login.js";
 import { openPair, upload } from "./controllers/pair.js";
 import { cancelRefine, downloadLiveMap, refine } from "./controllers/refine.js";
+import { toggleQuality } from "./controllers/quality.js";
 import { chooseSession, shareSession } from "./controllers/session.js";
 import { start } from "./controllers/startup.js";
 import { chooseTarget, setTexture, state } from "./store.js";
 import { checkerboardTexture } from "./views/colors.js";
 import { $ } from "./views/dom.js";
 import { showParameters } from "./views/forms.js";
+import { showRadius } from "./views/page.js";
 import { SIDES, viewports } from "./views/viewports.js";
 
 setTexture(checkerboardTexture());
@@ -59,11 +61,13 @@ function bindControls() {
   each('input[name="function"]', "change", (event) => selectFunction(event.target.value));
   each('input[name="map"]', "change", (event) => selectMap(event.target.value, event.timeStamp));
   on("region-radius", "change", (event) => changeRegionRadius(event.timeStamp));
+  on("region-radius", "input", (event) => showRadius(event.target.value));
   on("region-pick", "click", pickRegion);
   on("up-select", "change", reorient);
   on("reset-view", "click", reorient);
   on("link-cameras", "change", (event) => linkCameras(event.target.checked));
   on("show-curves", "change", (event) => showCurveTubes(event.target.checked));
+  on("show-quality", "change", (event) => toggleQuality(event.target.checked));
   on("texture-input", "change", (event) => useTextureImage(event.target));
   // Refine & export
   on("converter-select", "change", () => showParameters("converter"));
@@ -85,6 +89,15 @@ function installTestHooks() {
     vertexToScreen(side, fileId) {
       const { mesh } = state.shapes[side];
       return viewports[side].vertexToScreen(mesh.fileToInternal[fileId]);
+    },
+    get quality() {
+      const { quality } = state;
+      return quality && { score: quality.score, revision: quality.revision };
+    },
+    /** The file id of the vertex ringed on one side as the weakest region, or null. */
+    highlighted(side) {
+      const vertex = viewports[side].highlightedVertex;
+      return vertex >= 0 ? state.shapes[side].mesh.fileIds[vertex] : null;
     },
     screenToVertex(side, x, y) {
       const vertex = viewports[side].pick(x, y);

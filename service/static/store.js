@@ -14,12 +14,14 @@ export const state = {
   pickingRegion: false, // the next click on the source chooses the region
   pointwise: null, // { p2p: Int32Array (target internal -> source internal), revision, converter }
   texture: null, // the image carried as "uv" (a THREE texture)
+  quality: null, // the live maps' round trip (api.quality) of some revision, or null
+  showQuality: false, // the target is tinted by the round-trip drift and the weakest regions are ringed
   selected: null, // curve id drawn thicker
   // The clicks of the curve pair being entered, internal vertex ids per side. A plain click adds a point, and
   // a plain click after the first closes that side; Shift+click adds a waypoint. Clicking a closed side starts
   // it over. Sides may be entered in either order.
   pending: noClicks(),
-  history: [], // edits that can be undone, newest last: { kind: add | remove | replace, curveId, spec }
+  history: [], // edits that can be undone, newest last: { kind: add | remove | replace, curveId, spec, position }
   refineJob: null, // the id of the running refinement job
   pairInProgress: false, // the user is opening a pair (stop waiting for the demo's session)
   targetChosen: false, // the user chose the target shape (the lists no longer pick one)
@@ -49,6 +51,7 @@ export function setPlugins(plugins) {
 /** A session was loaded with its shapes: what belonged to the session shown before is dropped. */
 export function sessionOpened(session, shapes) {
   Object.assign(state, { session, shapes, region: null, pickingRegion: state.fn === "indicator", pointwise: null });
+  state.quality = null;
   Object.assign(state, { selected: null, map: "functional", history: [], pending: noClicks() });
 }
 
@@ -71,8 +74,9 @@ export function chooseTarget() {
 }
 
 // -- curves --------------------------------------------------------------------------------------------------
-export function curveAdded(curve) {
-  state.session.curves.push(curve);
+/** A curve was added at ``position`` in the list (default: last). */
+export function curveAdded(curve, position = state.session.curves.length) {
+  state.session.curves.splice(position, 0, curve);
   state.session.next_curve = Math.max(state.session.next_curve, Number(curve.id.slice(1)) + 1);
 }
 
@@ -116,19 +120,15 @@ export function pendingEmpty() {
   return state.pending.points.source.length === 0 && state.pending.points.target.length === 0;
 }
 
-/** Remember an edit for undo: kind add | remove | replace, curve as it was before (after, for add). */
-export function recordEdit(kind, curve) {
-  state.history.push({ kind, curveId: curve.id, spec: curve.spec });
+/** Remember an edit for undo: kind add | remove | replace, curve as it was before (after, for add), and its place in
+ * the list before the edit (a deleted curve comes back there). */
+export function recordEdit(kind, curve, position) {
+  state.history.push({ kind, curveId: curve.id, spec: curve.spec, position });
 }
 
 /** The newest edit was undone. */
 export function dropNewestEdit() {
   state.history.pop();
-}
-
-/** A re-added curve got a new id: the older edits follow it. */
-export function renameInHistory(oldId, newId) {
-  for (const entry of state.history) if (entry.curveId === oldId) entry.curveId = newId;
 }
 
 // -- what the surfaces show ----------------------------------------------------------------------------------
@@ -152,6 +152,14 @@ export function setMap(map) {
 
 export function setPointwise(pointwise) {
   state.pointwise = pointwise;
+}
+
+export function setQuality(quality) {
+  state.quality = quality;
+}
+
+export function setShowQuality(show) {
+  state.showQuality = show;
 }
 
 export function setTexture(texture) {

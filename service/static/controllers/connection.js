@@ -6,6 +6,7 @@ import { showCurves } from "../views/curves.js";
 import { banner, report, toast } from "../views/messages.js";
 import { showStatus } from "../views/page.js";
 import { showFeedback } from "./feedback.js";
+import { refreshQuality } from "./quality.js";
 import { refreshLists } from "./session.js";
 
 /** Follow state.connected, which every request sets. */
@@ -45,6 +46,7 @@ export async function resync() {
       sessionReloaded(record);
       showCurves();
       await showFeedback();
+      await refreshQuality();
     }
     showStatus();
   } catch (error) {

@@ -6,7 +6,6 @@ import {
   dropNewestEdit,
   pendingComplete,
   recordEdit,
-  renameInHistory,
   selectCurve,
   setPickingRegion,
   state,
@@ -53,10 +52,11 @@ function addCurve(clickTime) {
 }
 
 function removeCurve(curveId, clickTime) {
-  const curve = state.session.curves.find((c) => c.id === curveId);
+  const position = state.session.curves.findIndex((c) => c.id === curveId);
+  const curve = state.session.curves[position];
   return runEdit(clickTime, "delete", `Curve ${curveId} was not deleted`, async () => {
     const edit = await edits.remove(curveId);
-    recordEdit("remove", curve);
+    recordEdit("remove", curve, position);
     return edit;
   });
 }
@@ -92,15 +92,14 @@ export function undo(clickTime) {
 }
 
 /** Reverse the newest edit and resolve to the service's answer. When the service refuses, the edit stays in the
- * history, so it can be tried again. A re-added curve gets a new id; older edits follow it. */
+ * history, so it can be tried again. A deleted curve comes back with its id (so its colour) at its place. */
 async function undoNewest() {
   const entry = state.history.at(-1);
   let edit;
   if (entry.kind === "add") {
     edit = await edits.remove(entry.curveId);
   } else if (entry.kind === "remove") {
-    edit = await edits.add(entry.spec);
-    renameInHistory(entry.curveId, edit.curve.id);
+    edit = await edits.add(entry.spec, { curveId: entry.curveId, position: entry.position });
   } else {
     edit = await edits.replace(entry.curveId, entry.spec);
   }

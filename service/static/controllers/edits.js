@@ -4,16 +4,18 @@ import { api } from "../api.js";
 import { curveAdded, curveRemoved, curveReplaced, recordSample, setMap, setRevision, state } from "../store.js";
 import { showCurves, showPending } from "../views/curves.js";
 import { report } from "../views/messages.js";
-import { showMapChoice, showStatus } from "../views/page.js";
+import { showMapChoice, showSessionEntry, showStatus } from "../views/page.js";
 import { paint, viewports } from "../views/viewports.js";
 import { resync } from "./connection.js";
 import { carriedFunction } from "./feedback.js";
+import { refreshQuality } from "./quality.js";
 
 /** The session's edits: call the service, then keep the local record in step with its answer. */
 export const edits = {
-  async add(spec) {
-    const edit = await api.addCurve(state.session.id, spec);
-    curveAdded(edit.curve);
+  /** place: { curveId, position } of a deleted curve brought back (undo), else a new curve at the end. */
+  async add(spec, place = {}) {
+    const edit = await api.addCurve(state.session.id, spec, place);
+    curveAdded(edit.curve, place.position ?? undefined);
     return edit;
   },
   async remove(curveId) {
@@ -38,10 +40,9 @@ export async function runEdit(clickTime, kind, failure, perform) {
     const editedAt = performance.now();
     if (state.session?.id !== sessionId) return;
     setRevision(edit.map.revision);
-    if (state.map === "pointwise") {
-      setMap("functional"); // the refined map belongs to an older revision
-      showMapChoice();
-    }
+    if (state.map === "pointwise") setMap("functional"); // the refined map belongs to an older revision
+    showMapChoice();
+    showSessionEntry();
     const carried = await carriedFunction();
     const fetchedAt = performance.now();
     showCurves();
@@ -58,6 +59,7 @@ export async function runEdit(clickTime, kind, failure, perform) {
       drawMs: drawnAt - fetchedAt,
       solveMs: carried.solveMs,
     });
+    refreshQuality(); // after the texture: the reverse map it needs is solved while the user looks
   } catch (error) {
     showPending();
     report(error, failure);

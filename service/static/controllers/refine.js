@@ -20,10 +20,7 @@ export async function refine() {
     showRefineJob();
     const done = await waitForJob(job.id, (update) => row.update(update));
     row.finish(`finished in ${(done.ended_at - done.started_at).toFixed(1)} s`);
-    listJobFiles($("downloads"), done.links);
-    const text = await api.text(done.links["map_target_to_source.txt"]);
-    const p2p = pointwiseMap(text, state.shapes.source.mesh, state.shapes.target.mesh);
-    setPointwise({ p2p, revision: done.result.revision, converter });
+    await showRefinement(done);
     setMap("pointwise");
     showMapChoice();
     showFeedback();
@@ -34,6 +31,30 @@ export async function refine() {
     setRefineJob(null);
     showRefineJob();
     enableRefine(Boolean(state.session?.curves.length));
+  }
+}
+
+/** A finished refinement's downloads and pointwise map (marked stale once the session's revision passed it). */
+async function showRefinement(job) {
+  listJobFiles($("downloads"), job.links);
+  const text = await api.text(job.links["map_target_to_source.txt"]);
+  const p2p = pointwiseMap(text, state.shapes.source.mesh, state.shapes.target.mesh);
+  setPointwise({ p2p, revision: job.result.revision, converter: job.result.converter });
+  showMapChoice();
+}
+
+/** The session's newest finished refinement, as it was left (the page was reloaded or the session reopened). */
+export async function restoreRefinement() {
+  const session = state.session;
+  try {
+    const finished = (await api.refinements(session.id)).filter((job) => job.state === "finished");
+    const newest = finished.at(-1);
+    if (!newest || state.session !== session) return;
+    const row = new ProgressRow($("refine-progress"), `${newest.result.converter} (revision ${newest.result.revision})`);
+    row.finish(`finished ${new Date(newest.ended_at * 1000).toLocaleString()}`);
+    await showRefinement(newest);
+  } catch (error) {
+    report(error, "The session's refinements could not be listed");
   }
 }
 

@@ -19,6 +19,8 @@ import {
 } from "../views/page.js";
 import { orientViews, paint, showShapes, showSource, SIDES, viewports } from "../views/viewports.js";
 import { carriedRows } from "./feedback.js";
+import { refreshQuality } from "./quality.js";
+import { restoreRefinement } from "./refine.js";
 
 /** The session list's choice. */
 export function chooseSession(id) {
@@ -52,6 +54,8 @@ export async function openSession(id) {
     showSessionTitle();
     showSharing();
     showStatus();
+    refreshQuality();
+    restoreRefinement();
   } catch (error) {
     report(error, `Session ${id} could not be opened`);
     showLoading(`Session ${id} could not be opened: ${error.message}`);

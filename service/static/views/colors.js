@@ -57,12 +57,37 @@ const RAMP = [
   [0.98, 0.72, 0.22],
   [0.78, 0.12, 0.1],
 ];
-const RAMP_LUT = Float32Array.from({ length: 256 * 3 }, (_, index) => {
-  const t = Math.floor(index / 3) / 255;
-  const c = index % 3;
-  const [a, b, s] = t < 0.5 ? [RAMP[0], RAMP[1], t * 2] : [RAMP[1], RAMP[2], t * 2 - 1];
-  return SRGB_TO_LINEAR[byte(a[c] + (b[c] - a[c]) * s)];
-});
+const RAMP_LUT = lookupTable(RAMP);
+
+/** 256 linear RGB triples along a three-colour sRGB ramp. */
+function lookupTable(ramp) {
+  return Float32Array.from({ length: 256 * 3 }, (_, index) => {
+    const t = Math.floor(index / 3) / 255;
+    const c = index % 3;
+    const [a, b, s] = t < 0.5 ? [ramp[0], ramp[1], t * 2] : [ramp[1], ramp[2], t * 2 - 1];
+    return SRGB_TO_LINEAR[byte(a[c] + (b[c] - a[c]) * s)];
+  });
+}
+
+// white -> amber -> red: how far a vertex drifts on the maps' round trip (multiplies the surface's colours)
+const TINT = [
+  [1, 1, 1],
+  [1, 0.74, 0.3],
+  [0.85, 0.08, 0.08],
+];
+const TINT_LUT = lookupTable(TINT);
+
+/** Multiply colours (n x 3, ``out``) by the tint of each vertex's drift (units of sqrt(area)); a drift of
+ * ``full`` or more is fully red. */
+export function tintColors(drift, out, full) {
+  for (let i = 0; i < drift.length; i++) {
+    const k = 3 * byte(drift[i] / full);
+    out[3 * i] *= TINT_LUT[k];
+    out[3 * i + 1] *= TINT_LUT[k + 1];
+    out[3 * i + 2] *= TINT_LUT[k + 2];
+  }
+  return out;
+}
 
 /** Colours (n x 3, into ``out``) of a scalar in [0, 1] (clamped) on the grey-amber-red ramp. */
 export function rampColors(values, out) {

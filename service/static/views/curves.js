@@ -49,7 +49,9 @@ function renderCurveList(list, curves, selectedId) {
       swatch.style.background = curveColor(curve.id);
       const label = document.createElement("span");
       label.className = "curve-label";
-      label.textContent = `${curve.id} · ${curve.tracer} · ${curve.path_source.length}/${curve.path_target.length} v`;
+      const [onSource, onTarget] = [curve.path_source.length, curve.path_target.length];
+      label.textContent = `${curve.id} · ${curve.tracer} · ${onSource}/${onTarget} v`;
+      label.title = `${curve.id}, traced by ${curve.tracer}: ${onSource} vertices on the source / ${onTarget} on the target`;
       const retrace = button("↻", "re-trace with the tracer chosen above", "retrace");
       item.append(swatch, label, retrace, button("✕", "delete", "delete"));
       return item;

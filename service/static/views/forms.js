@@ -17,7 +17,8 @@ export function showPlugins(kind) {
   showParameters(kind);
 }
 
-/** The form of the chosen plugin: one input per schema property. */
+/** The form of the chosen plugin: one input per schema property, with a readable label, its current value (the
+ * default until changed) and what it means. A nested parameter set (e.g. rhm's zoomout start) keeps its defaults. */
 export function showParameters(kind) {
   const container = $(`${kind}-params`);
   container.replaceChildren();
@@ -25,13 +26,34 @@ export function showParameters(kind) {
   for (const [name, property] of properties) {
     const field = document.createElement("label");
     field.title = property.description ?? "";
-    field.append(`${property.title ?? name} `);
-    const input = inputFor(property);
-    input.name = name;
-    field.append(input);
+    field.append(`${readable(name, property)} `);
+    if (property.$ref) {
+      field.append(Object.assign(document.createElement("span"), { className: "param-fixed", textContent: "defaults" }));
+    } else {
+      const input = inputFor(valueSchema(property));
+      input.name = name;
+      field.append(input);
+    }
+    const help = Object.assign(document.createElement("small"), { className: "param-help" });
+    help.textContent = property.description ?? "";
+    field.append(help);
     container.append(field);
   }
   container.hidden = properties.length === 0;
+}
+
+/** "k_init" -> "k init", unless the schema gives a title of its own words (pydantic's are the name capitalised). */
+function readable(name, property) {
+  const words = name.replaceAll("_", " ");
+  const generated = property.title?.toLowerCase() === words;
+  return property.title && !generated ? property.title : words.charAt(0).toUpperCase() + words.slice(1);
+}
+
+/** The schema of the value an input holds: an optional value (anyOf with null) takes its other type; its default
+ * stays (null: the input is left empty, saying so). */
+function valueSchema(property) {
+  const other = property.anyOf?.find((option) => option.type !== "null");
+  return other ? { ...other, default: property.default, optional: true } : property;
 }
 
 /** The chosen plugin of a kind and its parameters as the form says: { name, params }. */
@@ -41,7 +63,7 @@ export function pluginChoice(kind) {
   const inputs = $(`${kind}-params`).querySelectorAll("input, select");
   for (const [propertyName, property] of Object.entries(chosenSchema(kind)?.properties ?? {})) {
     const input = [...inputs].find((element) => element.name === propertyName);
-    const value = input && valueOf(input, property);
+    const value = input && valueOf(input, valueSchema(property));
     if (value !== undefined) params[propertyName] = value;
   }
   return { name, params };
@@ -69,6 +91,7 @@ function inputFor(property) {
       if (property[bound] !== undefined) input[bound.slice(0, 3)] = String(property[bound]);
     }
     input.value = property.default ?? "";
+    if (property.optional) input.placeholder = "off (default)";
   } else {
     input.type = "text";
     input.value = property.default ?? "";

@@ -14,6 +14,7 @@ export function showLoading(text) {
 export function showStatus() {
   const parts = [];
   if (state.session) parts.push(`revision ${state.session.revision}`, `${state.session.curves.length} curves`);
+  if (state.quality) parts.push(`round-trip drift ${(100 * state.quality.score).toFixed(1)}% of √area`);
   const last = state.stats.last;
   if (last) {
     parts.push(
@@ -29,16 +30,29 @@ export function showStatus() {
 export function showLists(shapes, sessions) {
   for (const [select, role] of [[$("source-select"), "source"], [$("target-select"), "target"]]) {
     const previous = select.value || state.session?.[role];
-    select.replaceChildren(...shapes.map((s) => new Option(`${s.name} (${s.n_vertices} v)`, s.id)));
+    select.replaceChildren(
+      ...shapes.map((s) => {
+        const label = `${s.name} (${s.n_vertices.toLocaleString("en")} vertices)`;
+        return Object.assign(new Option(label, s.id), { title: label });
+      }),
+    );
     if (shapes.some((s) => s.id === previous)) select.value = previous;
   }
   if (!state.session && shapes.length > 1 && !state.targetChosen) $("target-select").selectedIndex = 1;
   const sessionSelect = $("session-select");
-  sessionSelect.replaceChildren(
-    new Option("—", ""),
-    ...sessions.map((s) => new Option(`${s.name || s.id} · ${s.n_curves} curves · k=${s.k}${ownedBy(s)}`, s.id)),
-  );
+  sessionSelect.replaceChildren(new Option("—", ""), ...sessions.map((s) => new Option(sessionLabel(s), s.id)));
   sessionSelect.value = state.session?.id ?? "";
+}
+
+function sessionLabel(summary) {
+  return `${summary.name || summary.id} · ${summary.n_curves} curves · k=${summary.k}${ownedBy(summary)}`;
+}
+
+/** The open session's entry in the session list follows its curves. */
+export function showSessionEntry() {
+  const { session } = state;
+  const option = [...$("session-select").options].find((o) => o.value === session?.id);
+  if (option) option.textContent = sessionLabel({ ...session, n_curves: session.curves.length });
 }
 
 /** " · by alice" for a session of another user. */
@@ -73,18 +87,30 @@ export function showPairInProgress() {
   $("open-pair").disabled = state.pairInProgress;
 }
 
+/** The region radius slider's value, in % of the source's size. */
+export function showRadius(percent) {
+  $("region-radius-value").textContent = `${percent}% of the size`;
+}
+
 export function showRegionControls() {
   $("region-controls").hidden = state.fn !== "indicator";
 }
 
-/** The Map choice: pointwise once a refinement gave a map, and which map is shown. */
+/** The Map choice: pointwise once a refinement gave a map, and which map is shown; the refinement's results
+ * are marked stale once the curves changed after it. */
 export function showMapChoice() {
   const { pointwise } = state;
   const radio = document.querySelector('input[name="map"][value="pointwise"]');
   radio.disabled = !pointwise;
+  const stale = pointwise && pointwise.revision !== state.session?.revision;
+  const now = stale ? ` — stale: the curves changed since (now revision ${state.session.revision})` : "";
   $("pointwise-label").textContent = pointwise
-    ? `Pointwise (${pointwise.converter}, revision ${pointwise.revision})`
+    ? `Pointwise (${pointwise.converter}, revision ${pointwise.revision}${now})`
     : "Pointwise (refine first)";
+  const note = $("refine-note");
+  note.hidden = !pointwise;
+  note.textContent = pointwise ? `Results of revision ${pointwise.revision}${now}.` : "";
+  note.classList.toggle("stale", Boolean(stale));
   document.querySelector(`input[name="map"][value="${state.map}"]`).checked = true;
 }
 

@@ -59,6 +59,11 @@ export class Viewport {
     this.surface.add(this.curveGroup);
     this.markers = new THREE.Group();
     this.surface.add(this.markers);
+    // a translucent ball over a region of the surface (the weakest region of the maps), scaled in setMesh
+    const ball = new THREE.MeshBasicMaterial({ color: 0xd81b60, transparent: true, opacity: 0.35, depthWrite: false });
+    this.highlight = new THREE.Mesh(new THREE.SphereGeometry(1, 24, 16), ball);
+    this.highlight.visible = false;
+    this.surface.add(this.highlight);
     this.raycaster = new THREE.Raycaster();
 
     new ResizeObserver(() => this.resize()).observe(this.box);
@@ -86,23 +91,30 @@ export class Viewport {
     }
     geometry.computeBoundingSphere();
     // Lambert: matte shading shows the shape as well as a physically based material at two thirds of the cost
-    this.textured = new THREE.MeshLambertMaterial({ side: THREE.DoubleSide });
-    this.colored = new THREE.MeshLambertMaterial({ side: THREE.DoubleSide, vertexColors: true });
-    this.materials = [this.textured, this.colored];
+    // the surface is drawn a little deeper than it is, so curve tubes lying in it show whole
+    const surface = { side: THREE.DoubleSide, polygonOffset: true, polygonOffsetFactor: 2, polygonOffsetUnits: 2 };
+    this.textured = new THREE.MeshLambertMaterial(surface);
+    this.colored = new THREE.MeshLambertMaterial({ ...surface, vertexColors: true });
+    this.tinted = new THREE.MeshLambertMaterial({ ...surface, vertexColors: true }); // texture x colours
+    this.materials = [this.textured, this.colored, this.tinted];
     this.mesh = new THREE.Mesh(geometry, this.textured);
     this.surface.add(this.mesh);
     const { radius } = geometry.boundingSphere;
-    this.tubeRadius = 0.006 * radius;
+    this.tubeRadius = 0.011 * radius;
     this.markerGeometry?.dispose();
     this.markerGeometry = new THREE.SphereGeometry(3.5 * this.tubeRadius, 16, 12);
+    this.highlight.scale.setScalar(0.09 * radius);
+    this.setHighlight(-1);
     this.frames.request(this);
   }
 
-  /** Turn the shape so its ``up`` axis points up and its ``towards`` axis at the viewer, scaled into the
-   * unit sphere and centred (linked viewports share this frame). Returns the half extents of its box. */
-  orient({ up, towards }) {
-    const side = new THREE.Vector3().crossVectors(AXES[up], AXES[towards]);
-    const rotation = new THREE.Matrix4().makeBasis(side, AXES[up], AXES[towards]).transpose();
+  /** Turn the shape so its ``up`` axis points up and its ``towards`` axis (negated when ``flip``) at the viewer,
+   * scaled into the unit sphere and centred (linked viewports share this frame). Returns the half extents of its
+   * box. */
+  orient({ up, towards, flip = false }) {
+    const facing = AXES[towards].clone().multiplyScalar(flip ? -1 : 1);
+    const side = new THREE.Vector3().crossVectors(AXES[up], facing);
+    const rotation = new THREE.Matrix4().makeBasis(side, AXES[up], facing).transpose();
     this.surface.quaternion.setFromRotationMatrix(rotation);
     this.surface.scale.setScalar(1 / this.mesh.geometry.boundingSphere.radius);
     this.surface.position.set(0, 0, 0);
@@ -131,13 +143,15 @@ export class Viewport {
   }
 
   // -- what the surface shows ------------------------------------------------------------------------------
-  /** Texture with per-vertex uv (Float32Array n x 2), copied into the existing attribute. */
-  showTexture(texture, uv) {
+  /** Texture with per-vertex uv (Float32Array n x 2), copied into the existing attribute; ``tint(array)``, when
+   * given, multiplies the white per-vertex colours it is handed (n x 3 linear RGB) and the texture by them. */
+  showTexture(texture, uv, tint = null) {
     const attribute = this.mesh.geometry.attributes.uv;
     attribute.array.set(uv);
     attribute.needsUpdate = true;
     this.setTexture(texture);
-    this.mesh.material = this.textured;
+    if (tint) this.showColors((out) => tint(out.fill(1)));
+    this.mesh.material = tint ? this.tinted : this.textured;
     this.frames.request(this);
   }
 
@@ -157,8 +171,10 @@ export class Viewport {
     } else {
       texture.anisotropy = Math.min(8, this.renderer.capabilities.getMaxAnisotropy());
     }
-    this.textured.map = texture;
-    this.textured.needsUpdate = true; // a map where there was none changes the shader
+    for (const material of [this.textured, this.tinted]) {
+      material.map = texture;
+      material.needsUpdate = true; // a map where there was none changes the shader
+    }
   }
 
   // -- curves and clicked points (internal vertex ids) ----------------------------------------------------
@@ -215,6 +231,14 @@ export class Viewport {
       marker.position.fromBufferAttribute(positions, vertex);
       this.markers.add(marker);
     }
+    this.frames.request(this);
+  }
+
+  /** Ring a region: a translucent ball around ``vertex`` (internal id), or none (-1). */
+  setHighlight(vertex) {
+    this.highlightedVertex = vertex;
+    this.highlight.visible = vertex >= 0;
+    if (vertex >= 0) this.highlight.position.fromBufferAttribute(this.mesh.geometry.attributes.position, vertex);
     this.frames.request(this);
   }
 
@@ -313,12 +337,15 @@ export class Viewport {
    * coloured, tubes and markers): shaders are compiled on first use, which would otherwise fall on a click. */
   warmUp() {
     const plain = new THREE.MeshLambertMaterial();
-    const samples = [this.textured, this.colored, plain].map((m) => new THREE.Mesh(this.mesh.geometry, m));
+    const samples = [...this.materials, plain].map((m) => new THREE.Mesh(this.mesh.geometry, m));
     this.surface.add(...samples);
+    const highlighted = this.highlight.visible;
+    this.highlight.visible = true;
     const viewport = this.renderer.getViewport(new THREE.Vector4());
     this.renderer.setViewport(0, 0, 1, 1);
     this.renderer.render(this.scene, this.camera);
     this.renderer.setViewport(viewport);
+    this.highlight.visible = highlighted;
     this.surface.remove(...samples);
     plain.dispose();
     this.frames.request(this);

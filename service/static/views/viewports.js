@@ -1,9 +1,10 @@
 // The two viewports, source and target (handles on the page's canvases, like DOM lookups), and what they show
 // of the store: the shapes, the carried function painted on the surfaces, the framing of the cameras.
 import { state } from "../store.js";
-import { rampColors, rgbColors } from "./colors.js";
+import { rampColors, rgbColors, tintColors } from "./colors.js";
 import { $ } from "./dom.js";
 import { FrameLoop } from "./frames.js";
+import { bounds } from "../functions.js";
 import { chooseAxes, Viewport } from "./viewer.js";
 
 export const SIDES = ["source", "target"];
@@ -30,23 +31,71 @@ export function sourceValues(fn) {
   return state.region?.indicator ?? new Float32Array(source.mesh.nVertices);
 }
 
+/** A round-trip drift of this many sqrt(area) or more is shown fully red: fixed, so the overlay fades as the map
+ * improves (FAUST 000 -> 011 with one curve: mean 0.08, worst 0.3; with ten: mean 0.04, worst 0.13). */
+export const FULL_DRIFT = 0.1;
+
+const painted = {}; // side -> { fn, rows }: what paint() showed last, for repaint()
+
+/** Paint one side again as it was last painted (the quality overlay changed). */
+export function repaint(side) {
+  if (painted[side]) paint(side, painted[side].fn, painted[side].rows);
+}
+
 /** Paint function ``fn`` on one side: rows per vertex of that side (uv as the texture, xyz and indicator as
- * colours). */
+ * colours), on the target tinted by the maps' round-trip drift while the quality overlay is on. */
 export function paint(side, fn, rows) {
+  painted[side] = { fn, rows };
   const view = viewports[side];
-  if (fn === "uv") view.showTexture(state.texture, rows);
-  else if (fn === "xyz") view.showColors((out) => rgbColors(rows, out));
-  else view.showColors((out) => rampColors(rows, out));
+  const tint = side === "target" ? qualityTint() : null;
+  if (fn === "uv") {
+    view.showTexture(state.texture, rows, tint);
+    return;
+  }
+  const fill = fn === "xyz" ? rgbColors : rampColors;
+  view.showColors((out) => (tint ? tint(fill(rows, out)) : fill(rows, out)));
+}
+
+function qualityTint() {
+  const { quality, showQuality } = state;
+  const fits = quality?.drift.length === state.shapes.target.mesh.nVertices;
+  if (!showQuality || !fits || state.map !== "functional") return null;
+  return (out) => tintColors(quality.drift, out, FULL_DRIFT);
+}
+
+/** Ring the weakest region of the maps on both shapes (where a new curve helps most) while the overlay is on. */
+export function showWeakestRegions() {
+  const { quality, showQuality } = state;
+  for (const side of SIDES) {
+    const worst = quality?.[side === "target" ? "worstTarget" : "worstSource"];
+    const vertex = showQuality && worst !== undefined ? state.shapes[side].mesh.fileToInternal[worst] : -1;
+    viewports[side].setHighlight(vertex ?? -1);
+  }
 }
 
 export function showSource() {
   paint("source", state.fn, sourceValues(state.fn));
 }
 
-/** Turn both shapes as the Up control says and frame them with one camera distance, so that linked cameras
- * frame both. */
+/** Whether most of the source's curve vertices lie behind the middle along the axis that faces the viewer. */
+function curvesBehind(vertices, towards) {
+  const axis = ["x", "y", "z"].indexOf(towards);
+  const { low, high } = bounds(vertices);
+  const middle = (low[axis] + high[axis]) / 2;
+  const { fileToInternal } = state.shapes.source.mesh;
+  let balance = 0;
+  for (const curve of state.session?.curves ?? []) {
+    for (const id of curve.path_source) balance += Math.sign(vertices[3 * fileToInternal[id] + axis] - middle);
+  }
+  return balance < 0;
+}
+
+/** Turn both shapes as the Up control says, the side where the source's curves lie more towards the viewer, and
+ * frame them with one camera distance, so that linked cameras frame both. */
 export function orientViews() {
-  const axes = chooseAxes(state.shapes.source.mesh.vertices, $("up-select").value);
+  const { vertices } = state.shapes.source.mesh;
+  const axes = chooseAxes(vertices, $("up-select").value);
+  axes.flip = curvesBehind(vertices, axes.towards);
   const [source, target] = SIDES.map((side) => viewports[side].orient(axes));
   const both = source.max(target);
   for (const side of SIDES) viewports[side].resetCamera(both);
