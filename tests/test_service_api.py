@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+import http.client
 import json
-import socket
 import struct
 import time
 
@@ -98,13 +98,16 @@ def test_transfers_are_float32_rows_per_target_vertex(server, function, columns)
 def test_an_idle_connection_stays_open_longer_than_clients_keep_theirs(server):
     """A server that closes idle connections first races the next request on them (a dropped request):
     it must outlast an httpx client's 5 s pool expiry."""
-    with socket.create_connection(("127.0.0.1", int(server.url.rsplit(":", 1)[1])), timeout=10) as connection:
-        request = b"GET /health HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"
-        connection.sendall(request)
-        assert connection.recv(4096).startswith(b"HTTP/1.1 200")
+    connection = http.client.HTTPConnection("127.0.0.1", int(server.url.rsplit(":", 1)[1]), timeout=10)
+    try:
+        connection.request("GET", "/health")
+        assert connection.getresponse().read() and connection.sock is not None
+        opened = connection.sock
         time.sleep(6)  # longer than uvicorn's default keep-alive (5 s)
-        connection.sendall(request)
-        assert connection.recv(4096).startswith(b"HTTP/1.1 200")
+        connection.request("GET", "/health")  # closed by the server: RemoteDisconnected
+        assert connection.getresponse().status == 200 and connection.sock is opened
+    finally:
+        connection.close()
 
 
 def test_quality_is_the_round_trip_drift_per_target_vertex(server):
