@@ -19,5 +19,5 @@ fi
 
 python3 -m pip install -q --disable-pip-version-check -e ".[service,test,reproduce]"
 if [ -f package.json ]; then
-  npm install --no-audit --no-fund --silent
+  npm install --ignore-scripts --no-audit --no-fund --silent  # no install scripts: the UI needs none
 fi
