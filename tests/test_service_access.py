@@ -107,6 +107,9 @@ RULES: dict[tuple[str, str], Rule] = {
     ),
     ("get", "/sessions/{session_id}/map"): Rule(lambda w: Call(session(w)), other=404),
     ("get", "/sessions/{session_id}/transfer"): Rule(lambda w: Call(session(w), params={"function": "xyz"}), other=404),
+    ("get", "/sessions/{session_id}/exports/{export}"): Rule(
+        lambda w: Call(session(w, export="target_textured.zip")), other=404
+    ),
     ("post", "/sessions/{session_id}/refine"): Rule(
         lambda w: Call(session(w), json={"converter": "nearest-neighbor"}), other=404
     ),
