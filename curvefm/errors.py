@@ -97,6 +97,13 @@ class Unavailable(CurvefmError):
     code = "unavailable"
 
 
+ERROR_KINDS: dict[str, type[CurvefmError]] = {
+    cls.code: cls
+    for cls in (InvalidInput, NotFound, Conflict, Forbidden, ResourceLimit, TooMany, Unauthenticated, InternalError,
+                Unavailable)
+}
+"""The class of each ``code`` (the HTTP API's ``error`` field): what :mod:`curvefm.client` raises for an answer."""
+
 SHOWN_CHARS = 64
 
 

@@ -9,14 +9,16 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
+import scipy.io
 from pydantic import BaseModel
 
 from curvefm import registry
 from curvefm.errors import InvalidInput
 from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K, DEFAULT_SAMPLES, FunctionalMaps, Hints, transfer
-from curvefm.geometry import Mesh, save_mesh, texture_coordinates
+from curvefm.geometry import Mesh, save_mesh, save_textured_zip, texture_coordinates
 from curvefm.pointwise import PointwiseMaps, compare, initial_maps, measure
 from curvefm.progress import Progress, no_progress, scaled
 from curvefm.registry import ConverterPlugin
@@ -134,22 +136,41 @@ def match(
     return convert(pair, fmaps, converter_plugin, converter_parsed, scaled(progress, 0.8, 1.0), method, paths)
 
 
+MAT_NOTE = (
+    "C_source_to_target takes coefficients of a function on the source to coefficients on the target. "
+    "map_target_to_source(j + 1) is the source vertex of target vertex j: 0-based file vertex ids (add 1 to index "
+    "MATLAB arrays), -1 for a vertex of no face."
+)
+
+
+def save_maps_mat(out: str | Path | BinaryIO, C_MN: np.ndarray, C_NM: np.ndarray, **maps: np.ndarray) -> None:
+    """Both functional maps (and pointwise ``maps`` by name, e.g. ``map_target_to_source``) as a MATLAB
+    ``.mat`` file (version 5, what ``load`` reads), with a ``note`` on directions and ids."""
+    arrays = {"C_source_to_target": C_MN, "C_target_to_source": C_NM, **maps}
+    scipy.io.savemat(out, {**arrays, "note": MAT_NOTE}, do_compression=True, oned_as="column")
+
+
 def write_outputs(result: MatchResult, out_dir: str | Path) -> list[Path]:
     """The files of ``curvefm match``; maps are written per **file** vertex in file ids (-1 for a dropped
-    vertex), one integer per line: ``map_target_to_source.txt`` line j = source vertex for target vertex j."""
+    vertex), one integer per line: ``map_target_to_source.txt`` line j = source vertex for target vertex j.
+    ``maps.mat`` holds both functional and pointwise maps for MATLAB; ``target_textured.zip`` the textured
+    target as OBJ + MTL + texture image."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     mesh_M, mesh_N, maps = result.pair.mesh_M, result.pair.mesh_N, result.maps
     np.save(out / "C_source_to_target.npy", result.fmaps.C_MN)
     np.save(out / "C_target_to_source.npy", result.fmaps.C_NM)
     files = [out / "C_source_to_target.npy", out / "C_target_to_source.npy"]
+    pointwise = {}
     for name, p2p, image, domain in (
-        ("map_target_to_source.txt", maps.p2p_NM, mesh_M, mesh_N),
-        ("map_source_to_target.txt", maps.p2p_MN, mesh_N, mesh_M),
+        ("map_target_to_source", maps.p2p_NM, mesh_M, mesh_N),
+        ("map_source_to_target", maps.p2p_MN, mesh_N, mesh_M),
     ):
-        np.savetxt(out / name, domain.per_file_vertex(image.file_ids[p2p], -1), fmt="%d")
-        files.append(out / name)
+        pointwise[name] = domain.per_file_vertex(image.file_ids[p2p], -1)
+        np.savetxt(out / f"{name}.txt", pointwise[name], fmt="%d")
+        files.append(out / f"{name}.txt")
+    save_maps_mat(out / "maps.mat", result.fmaps.C_MN, result.fmaps.C_NM, **pointwise)
     uv_N = transfer(result.fmaps.C_MN, result.pair.basis_M, result.pair.basis_N, texture_coordinates(mesh_M))
     save_mesh(mesh_N, out / "target_textured.obj", uv=uv_N)
-    files.append(out / "target_textured.obj")
-    return files
+    save_textured_zip(mesh_N, uv_N, out / "target_textured.zip", "target_textured")
+    return files + [out / "maps.mat", out / "target_textured.obj", out / "target_textured.zip"]

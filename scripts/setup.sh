@@ -20,5 +20,5 @@ fi
 
 python3 -m pip install -q --disable-pip-version-check -e ".[service,test,reproduce,bench]"
 if [ -f package.json ]; then
-  npm install --no-audit --no-fund --silent
+  npm install --ignore-scripts --no-audit --no-fund --silent  # no install scripts: the UI needs none
 fi

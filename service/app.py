@@ -5,18 +5,17 @@ from __future__ import annotations
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
-from fastapi import APIRouter, FastAPI, Request
-from fastapi.openapi.docs import get_swagger_ui_html
-from fastapi.responses import HTMLResponse, JSONResponse
+from fastapi import FastAPI
 from starlette.exceptions import HTTPException
 
 from curvefm.access import UserStore
 from curvefm.errors import LimitExceeded
 from curvefm.service import routes_audit, routes_auth, routes_jobs, routes_sessions, routes_shapes
-from curvefm.service.auth import AUTHENTICATED, LOCAL_ADMIN, CredentialsFirst
+from curvefm.service.auth import LOCAL_ADMIN, CredentialsFirst
 from curvefm.service.deps import start_services
+from curvefm.service.docs import DOCS_PAGES, documentation_routes
 from curvefm.service.errors import error_response, error_responses, install_error_handlers
-from curvefm.service.headers import SecurityHeaders, ui_csp
+from curvefm.service.headers import SecurityHeaders, docs_csp, ui_csp
 from curvefm.service.hints import install_hints
 from curvefm.service.hosts import HostCheck
 from curvefm.service.logs import log_config
@@ -121,7 +120,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     if settings.rate_limit:
         app.add_middleware(RateLimit, settings=settings, buckets=buckets, exempt=is_unlimited)
     app.add_middleware(HostCheck, allowed=settings.allowed_hosts)
-    app.add_middleware(SecurityHeaders, csp=ui_csp(INDEX_HTML))
+    app.add_middleware(SecurityHeaders, csp=ui_csp(INDEX_HTML), docs_csp=docs_csp(DOCS_PAGES.values()))
     for module in (routes_auth, routes_shapes, routes_sessions, routes_jobs, routes_audit):
         app.include_router(module.router)
     app.include_router(routes_jobs.public)
@@ -133,21 +132,6 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 def is_unlimited(path: str) -> bool:
     """``/health`` and the UI's static files are not rate limited."""
     return path == "/health" or is_ui_path(path)
-
-
-def documentation_routes() -> APIRouter:
-    """``/openapi.json`` and ``/docs`` (Swagger UI), for users only (the page sends the login cookie)."""
-    router = APIRouter(dependencies=AUTHENTICATED, include_in_schema=False)
-
-    @router.get("/openapi.json")
-    def openapi(request: Request) -> JSONResponse:
-        return JSONResponse(request.app.openapi())
-
-    @router.get("/docs")
-    def docs() -> HTMLResponse:
-        return get_swagger_ui_html(openapi_url="/openapi.json", title="curvefm API")
-
-    return router
 
 
 def login_instructions(users: UserStore, host: str, port: int) -> str:

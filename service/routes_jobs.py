@@ -20,7 +20,7 @@ router = APIRouter(route_class=SchemaRoute, dependencies=AUTHENTICATED, response
 public = APIRouter(route_class=SchemaRoute)
 ERRORS = {**error_responses(404, 409, 422), **JOB_ERRORS}
 _SAFE_NAME = re.compile(r"^[A-Za-z0-9_-][A-Za-z0-9_.-]{0,127}$")
-FILE_TYPES = {".txt": "text/plain", ".obj": "model/obj"}
+FILE_TYPES = {".txt": "text/plain", ".obj": "model/obj", ".mat": "application/x-matlab-data", ".zip": "application/zip"}
 """Media types of the result files by suffix; any other file (``.npy``) is ``application/octet-stream``."""
 BINARY = "application/octet-stream"
 FILE_CONTENT = {media_type: {"schema": {"type": "string"}} for media_type in FILE_TYPES.values()}
@@ -66,7 +66,8 @@ def cancel_job(job_id: str, services: ServicesDep, user: CurrentUser) -> JobInfo
 )
 def get_job_file(job_id: str, name: str, services: ServicesDep, user: CurrentUser) -> FileResponse:
     """A file a refinement job wrote (listed in its ``links``): maps as text (``.txt``), numpy arrays
-    (``.npy``), the textured target (``.obj``); whoever may see the job may fetch it."""
+    (``.npy``), both kinds of maps for MATLAB (``maps.mat``), the textured target (``.obj``, and with its material
+    and texture image as ``target_textured.zip``); whoever may see the job may fetch it."""
     job_for(services, user, job_id)
     path = results_dir(services, job_id) / name
     if not (_SAFE_NAME.match(job_id) and _SAFE_NAME.match(name) and path.is_file()):

@@ -4,12 +4,16 @@ deleting. Who may do which: :mod:`curvefm.service.permissions`."""
 from __future__ import annotations
 
 import contextlib
+import io
 import shutil
-from typing import Annotated
+from pathlib import Path
+from typing import Annotated, Literal
 
 from fastapi import APIRouter, Query, Response
 
 from curvefm.errors import Conflict, CurvefmError
+from curvefm.geometry import save_textured_zip
+from curvefm.matching import save_maps_mat
 from curvefm.service.auth import AUTHENTICATED, CurrentUser
 from curvefm.service.deps import JOB_ERRORS, Services, ServicesDep, job_model, results_dir
 from curvefm.service.errors import error_responses, require_plugin
@@ -214,6 +218,38 @@ def get_quality(session_id: str, services: ServicesDep, user: CurrentUser) -> Re
         "X-Worst-Source": str(quality.worst_source),
     }
     return Response(quality.drift.astype("<f4").tobytes(), media_type="application/octet-stream", headers=headers)
+
+
+EXPORT_TYPES = {"maps.mat": "application/x-matlab-data", "target_textured.zip": "application/zip"}
+ExportName = Literal["maps.mat", "target_textured.zip"]
+
+
+@router.get(
+    "/sessions/{session_id}/exports/{export}",
+    response_class=Response,
+    responses={
+        200: {"content": {media: {"schema": {"type": "string", "format": "binary"}} for media in EXPORT_TYPES.values()},
+              "headers": {"X-Revision": TRANSFER_HEADERS["X-Revision"]}},
+        **ERRORS,
+    },
+)
+def get_export(session_id: str, export: ExportName, services: ServicesDep, user: CurrentUser) -> Response:
+    """The live map as a file to download. ``maps.mat``: both functional maps for MATLAB
+    (``C_source_to_target``, ``C_target_to_source``); ``target_textured.zip``: the target with the source's
+    texture coordinates carried by the map, as OBJ + MTL + texture image (the UI's checkerboard). Pointwise maps
+    come from a refinement job, whose files include the same two."""
+    record = session_for(services, user, session_id, "read")
+    out = io.BytesIO()
+    if export == "maps.mat":
+        C_MN, C_NM, record = services.sessions.maps(session_id)
+        save_maps_mat(out, C_MN, C_NM)
+        revision = record.revision
+    else:
+        uv, revision, _ = services.sessions.transfer(session_id, "uv")
+        save_textured_zip(services.live.mesh(record.target), uv, out, "target_textured")
+    filename = f"{Path(export).stem}_{session_id}_r{revision}{Path(export).suffix}"
+    headers = {"Content-Disposition": f'attachment; filename="{filename}"', "X-Revision": str(revision)}
+    return Response(out.getvalue(), media_type=EXPORT_TYPES[export], headers=headers)
 
 
 @router.post(

@@ -1,8 +1,10 @@
-"""The web UI: static files from ``static/`` at ``/``, three.js from npm at ``/vendor/three/``.
+"""The web UI: static files from ``static/`` at ``/``, and the browser packages from npm under ``/vendor/``:
+three.js (``/vendor/three/``) for the UI, Swagger UI and ReDoc for ``/docs`` and ``/redoc``.
 
-three.js is not committed: ``npm install`` (run by ``scripts/setup.sh``) puts the version pinned in
-``package.json`` into ``node_modules/three`` at the repository root; ``CURVEFM_THREE_DIR`` points elsewhere
-(e.g. in an image that copied the package). The page imports it through an import map, with no build step.
+The npm packages are not committed. A wheel carries the files the pages load, copied at build time from the
+versions ``package-lock.json`` pins (``build_vendor.py``), in ``curvefm/service/vendor/``; a checkout serves its
+``node_modules`` (``npm install``, run by ``scripts/setup.sh``); ``CURVEFM_THREE_DIR`` points at another three.js
+package. The page imports three.js through an import map, with no build step.
 """
 
 from __future__ import annotations
@@ -20,20 +22,33 @@ from starlette.types import Scope
 
 STATIC_DIR = Path(__file__).parent / "static"
 INDEX_HTML = STATIC_DIR / "index.html"
-VENDOR_URL = "/vendor/three"
+PACKAGED_VENDOR_DIR = Path(__file__).parent / "vendor"
+"""Where a wheel carries the npm files (absent in a checkout)."""
+REPO_NODE_MODULES = Path(__file__).resolve().parents[1] / "node_modules"
+VENDOR_URLS = {"three": "/vendor/three", "swagger-ui-dist": "/vendor/swagger-ui", "redoc": "/vendor/redoc"}
+"""Where each npm package is served."""
+VENDOR_ENTRY = {
+    "three": "build/three.module.js",
+    "swagger-ui-dist": "swagger-ui-bundle.js",
+    "redoc": "bundles/redoc.standalone.js",
+}
+"""A file each package must have to be served."""
 METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE")
-REPO_THREE_DIR = Path(__file__).resolve().parents[1] / "node_modules" / "three"
 log = logging.getLogger("curvefm.service")
 
 
-def three_dir() -> Path:
-    """Where the three.js package is: ``CURVEFM_THREE_DIR``, else ``node_modules/three`` of the checkout."""
-    return Path(os.environ.get("CURVEFM_THREE_DIR") or REPO_THREE_DIR)
+def vendor_dir(package: str) -> Path:
+    """Where the npm ``package`` is: for three.js ``CURVEFM_THREE_DIR`` if set; else the wheel's copy, else the
+    checkout's ``node_modules``."""
+    if package == "three" and os.environ.get("CURVEFM_THREE_DIR"):
+        return Path(os.environ["CURVEFM_THREE_DIR"])
+    packaged = PACKAGED_VENDOR_DIR / package
+    return packaged if (packaged / VENDOR_ENTRY[package]).is_file() else REPO_NODE_MODULES / package
 
 
 @cache
 def _ui_top_names() -> frozenset[str]:
-    return frozenset([path.name for path in STATIC_DIR.iterdir()] + [VENDOR_URL.split("/")[1]])
+    return frozenset([path.name for path in STATIC_DIR.iterdir()] + ["vendor"])
 
 
 def is_ui_path(path: str) -> bool:
@@ -42,23 +57,28 @@ def is_ui_path(path: str) -> bool:
 
 
 def mount_ui(app: FastAPI) -> None:
-    """Add the UI to ``app``: call it after the API routers (the catch-all ``/`` mount comes last)."""
-
-    three = three_dir()
-    if (three / "build" / "three.module.js").is_file():
-        app.mount(VENDOR_URL, StaticFiles(directory=three), name="vendor-three")
-    else:
-        message = (
-            "three.js is not installed on the server: run `npm install` in the repository root "
-            "(scripts/setup.sh does) or set CURVEFM_THREE_DIR to an installed 'three' package"
-        )
-        log.warning("%s (looked in %s)", message, three)  # the path goes to the log, not to the page
-
-        @app.get(VENDOR_URL + "/{path:path}", include_in_schema=False)
-        def three_missing(path: str) -> JSONResponse:
-            return JSONResponse({"error": "not_found", "detail": message}, status_code=404)
-
+    """Add the UI and the npm packages to ``app``: call it after the API routers (the catch-all ``/`` mount comes
+    last)."""
+    for package, url in VENDOR_URLS.items():
+        _mount_vendor(app, package, url)
     app.router.routes.append(UiMount(app.router.routes))
+
+
+def _mount_vendor(app: FastAPI, package: str, url: str) -> None:
+    folder = vendor_dir(package)
+    if (folder / VENDOR_ENTRY[package]).is_file():
+        app.mount(url, StaticFiles(directory=folder), name=f"vendor-{package}")
+        return
+    message = (
+        f"the npm package '{package}' is not installed on the server: install a curvefm wheel (it carries it), or "
+        "run `npm install` in the repository root (scripts/setup.sh does)"
+        + (", or set CURVEFM_THREE_DIR to an installed 'three' package" if package == "three" else "")
+    )
+    log.warning("%s (looked in %s)", message, folder)  # the path goes to the log, not to the page
+
+    @app.get(url + "/{path:path}", include_in_schema=False, name=f"missing-{package}")
+    def vendor_missing(path: str) -> JSONResponse:
+        return JSONResponse({"error": "not_found", "detail": message}, status_code=404)
 
 
 class UiMount(Mount):

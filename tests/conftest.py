@@ -161,11 +161,14 @@ class Processes:
         self.started: list[subprocess.Popen] = []
         self.tokens: dict[tuple[Path, str], str] = {}  # one token per user and data directory, for replicas
 
-    def start(self, args: list[str], name: str, env: dict[str, str] | None = None) -> subprocess.Popen:
+    def start(
+        self, args: list[str], name: str, env: dict[str, str] | None = None, cwd: Path | None = None
+    ) -> subprocess.Popen:
         log = self.folder / f"{name}.log"
         process = subprocess.Popen(
             [sys.executable, *args[1:]] if args[0] == "python" else args,
             env={**os.environ, **(env or {})},
+            cwd=cwd,
             stdout=open(log, "ab"),  # noqa: SIM115  (the child holds it; closed when the process ends)
             stderr=subprocess.STDOUT,
         )

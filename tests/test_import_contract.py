@@ -7,6 +7,7 @@ Import names differ from folder names (``service/`` installs as ``curvefm.servic
 * plugins import the core's public API (a package such as ``curvefm.fmap``, not its modules) and other plugins
 * workers import the core and plugins, never the service
 * the service imports the core, plugins and, of the workers, only the queue interface and the factory of queues
+* the client (of the HTTP API) imports the core's public API only: never the service, workers or plugins
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from conftest import REPO
 
 QUEUE_INTERFACE = {"curvefm.workers.interface", "curvefm.workers.factory"}
 CORE_PACKAGES = {"geometry", "spectral", "fmap", "pointwise", "session", "evaluation"}
-ABOVE_CORE = ("curvefm.plugins", "curvefm.service", "curvefm.workers")
+ABOVE_CORE = ("curvefm.plugins", "curvefm.service", "curvefm.workers", "curvefm.client")
 
 
 @cache
@@ -81,6 +82,9 @@ def violations(module: str, imported: set[str]) -> list[str]:
     if module.startswith("curvefm.plugins"):
         private = {m for m in modules if _inside_core_package(m)}
         return sorted(_under(modules, "curvefm.service", "curvefm.workers") | private)
+    if module.startswith("curvefm.client"):
+        private = {m for m in modules if _inside_core_package(m)}
+        return sorted(_under(modules, "curvefm.service", "curvefm.workers", "curvefm.plugins") | private)
     if module.startswith("curvefm.workers"):
         return sorted(_under(modules, "curvefm.service"))
     if module.startswith("curvefm.service"):
@@ -101,7 +105,8 @@ def _inside_core_package(module: str) -> bool:
 
 def test_the_contract_reads_every_source_folder():
     modules = all_imports()
-    for expected in ("curvefm.cli", "curvefm.plugins.tracers", "curvefm.service.app", "curvefm.workers.jobs"):
+    for expected in ("curvefm.cli", "curvefm.plugins.tracers", "curvefm.service.app", "curvefm.workers.jobs",
+                     "curvefm.client.api"):
         assert expected in modules
     assert len(modules) > 60
 
@@ -117,3 +122,5 @@ def test_a_core_module_importing_the_service_is_caught():
     assert violations("curvefm.service.deps", {"curvefm.workers.jobs"}) == ["curvefm.workers.jobs"]
     assert violations("curvefm.service.deps", {"curvefm.workers.rq_queue"}) == ["curvefm.workers.rq_queue"]
     assert violations("curvefm.workers.jobs", {"curvefm.service.models"}) == ["curvefm.service.models"]
+    assert violations("curvefm.client.api", {"curvefm.service.models"}) == ["curvefm.service.models"]
+    assert violations("curvefm.fmap.solver", {"curvefm.client.api"}) == ["curvefm.client.api"]

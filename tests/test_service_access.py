@@ -21,6 +21,7 @@ from curvefm.service.app import create_app
 from curvefm.service.auth import bearer_user, current_user
 from curvefm.service.models import ErrorBody
 from curvefm.service.settings import Settings
+from curvefm.service.ui import VENDOR_URLS
 
 CALLERS = ("anonymous", "wrong", "other", "owner", "admin")
 OK = "2xx"
@@ -108,6 +109,9 @@ RULES: dict[tuple[str, str], Rule] = {
     ("get", "/sessions/{session_id}/transfer"): Rule(lambda w: Call(session(w), params={"function": "xyz"}), other=404),
     ("get", "/sessions/{session_id}/quality"): Rule(lambda w: Call(session(w)), other=404),
     ("get", "/sessions/{session_id}/refinements"): Rule(lambda w: Call(session(w)), other=404),
+    ("get", "/sessions/{session_id}/exports/{export}"): Rule(
+        lambda w: Call(session(w, export="target_textured.zip")), other=404
+    ),
     ("post", "/sessions/{session_id}/refine"): Rule(
         lambda w: Call(session(w), json={"converter": "nearest-neighbor"}), other=404
     ),
@@ -118,7 +122,8 @@ RULES: dict[tuple[str, str], Rule] = {
     ("get", "/jobs/{job_id}/files/{name}"): Rule(lambda w: Call({"job_id": w.job, "name": w.file}), other=404),
 }
 PUBLIC_PATHS = {path for (_, path), rule in RULES.items() if rule.public} | {
-    "/vendor/three/{path:path}",  # the UI shell's answer when three.js is not installed (service/ui.py)
+    # the answers when an npm package is not installed (service/ui.py)
+    f"{url}/{{path:path}}" for url in VENDOR_URLS.values()
 }
 
 
@@ -163,7 +168,7 @@ def test_the_access_matrix(world, caller):
     assert not wrong, f"{caller}:\n" + "\n".join(wrong)
 
 
-@pytest.mark.parametrize("path", ["/docs", "/openapi.json"])
+@pytest.mark.parametrize("path", ["/docs", "/redoc", "/openapi.json"])
 def test_the_documentation_needs_credentials_too(world, path):
     assert world.lab.anonymous.get(path).status_code == 401
     assert world.lab.other.get(path).status_code == 200
@@ -189,7 +194,7 @@ def test_every_route_that_is_not_public_asks_for_credentials(tmp_path):
     unguarded = []
     for route in flat_routes(app.routes):
         if isinstance(route, Mount):
-            assert route.name in ("ui", "vendor-three"), f"unexpected mount {route.path}"
+            assert route.name in {"ui"} | {f"vendor-{p}" for p in VENDOR_URLS}, f"unexpected mount {route.path}"
         elif not isinstance(route, APIRoute):
             unguarded.append(route.path)  # a plain Starlette route has no dependencies at all
         elif route.path not in PUBLIC_PATHS and not dependency_calls(route.dependant) & {current_user, bearer_user}:

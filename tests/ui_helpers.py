@@ -119,3 +119,31 @@ def canvas_pixels(page, side: str) -> np.ndarray:
 def changed_fraction(before: np.ndarray, after: np.ndarray, threshold: int = 12) -> float:
     """Share of pixels whose colour moved by more than ``threshold`` in some channel."""
     return float((np.abs(before.astype(int) - after.astype(int)).max(axis=2) > threshold).mean())
+
+
+CSP_WATCH = (
+    "document.addEventListener('securitypolicyviolation', (e) => "
+    "(window.cspViolations = window.cspViolations || []).push(e.violatedDirective + ' ' + e.blockedURI))"
+)
+
+
+class PageWatch:
+    """What a browser context asked for beyond ``origin`` (those requests are aborted, as on a network without
+    internet) and the Content-Security-Policy violations of its pages."""
+
+    def __init__(self, context, origin: str):
+        self.origin, self.elsewhere = origin, []
+        context.add_init_script(CSP_WATCH)
+        context.route("**/*", self._route)
+
+    def _route(self, route) -> None:
+        url = route.request.url
+        if url.startswith(self.origin + "/") or url.startswith(("data:", "blob:")):
+            route.continue_()
+        else:
+            self.elsewhere.append(url)
+            route.abort()
+
+    @staticmethod
+    def violations(page) -> list[str]:
+        return page.evaluate("window.cspViolations || []")

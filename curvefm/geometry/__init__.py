@@ -14,9 +14,16 @@ from curvefm.geometry.geodesics import (
 from curvefm.geometry.graph_paths import check_edge_path, shortest_path
 from curvefm.geometry.laplacian import cotangent_laplacian, robust_laplacian
 from curvefm.geometry.mesh import Mesh, MeshReport, edge_keys, edge_weight_graph
-from curvefm.geometry.mesh_io import GLTF_FORMATS, OPEN3D_FORMATS, SUPPORTED_FORMATS, load_mesh, save_mesh
+from curvefm.geometry.mesh_io import (
+    GLTF_FORMATS,
+    OPEN3D_FORMATS,
+    SUPPORTED_FORMATS,
+    load_mesh,
+    save_mesh,
+    save_textured_zip,
+)
 from curvefm.geometry.sampling import farthest_point_sampling
-from curvefm.geometry.texture import cylindrical_uv, texture_coordinates
+from curvefm.geometry.texture import checkerboard_image, cylindrical_uv, texture_coordinates
 from curvefm.geometry.validation import build_mesh, max_vertices, per_vertex_uv
 
 __all__ = [
@@ -28,6 +35,7 @@ __all__ = [
     "SUPPORTED_FORMATS",
     "build_mesh",
     "check_edge_path",
+    "checkerboard_image",
     "checked_ids",
     "cotangent_laplacian",
     "cylindrical_uv",
@@ -43,6 +51,7 @@ __all__ = [
     "per_vertex_uv",
     "robust_laplacian",
     "save_mesh",
+    "save_textured_zip",
     "shortest_path",
     "texture_coordinates",
 ]

@@ -6,7 +6,10 @@ Every reader keeps the file's vertex order, so vertex ids a user reads off a fil
 from __future__ import annotations
 
 import os
+import tempfile
+import zipfile
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 
@@ -18,6 +21,7 @@ from curvefm.geometry.formats.ply import read_ply
 from curvefm.geometry.formats.ply_stl import write_ply_stl
 from curvefm.geometry.formats.stl import read_stl
 from curvefm.geometry.mesh import Mesh
+from curvefm.geometry.texture import checkerboard_image
 
 OPEN3D_FORMATS = {".ply", ".stl"}
 """Formats open3d writes; every format is read by our own code or trimesh."""
@@ -70,3 +74,18 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike, uv: np.ndarray | None = None)
     if suffix not in OPEN3D_FORMATS:
         raise InvalidInput(f"cannot write format '{suffix}'; supported: {', '.join(SUPPORTED_FORMATS)}")
     write_ply_stl(mesh, path)
+
+
+def save_textured_zip(mesh: Mesh, uv: np.ndarray, out: str | os.PathLike | BinaryIO, stem: str) -> None:
+    """The mesh with texture coordinates ``uv`` as ``<stem>.obj``, its material ``<stem>.mtl`` and texture image
+    ``<stem>.png`` (the web UI's checkerboard) in one zip file, which 3D tools open as a textured mesh."""
+    from PIL import Image  # only this export needs it
+
+    with tempfile.TemporaryDirectory(prefix="curvefm-textured-") as folder:
+        files = [Path(folder) / f"{stem}{suffix}" for suffix in (".obj", ".mtl", ".png")]
+        write_obj(mesh, files[0], uv, material=stem)
+        files[1].write_text(f"newmtl {stem}\nKa 1 1 1\nKd 1 1 1\nKs 0 0 0\nillum 1\nmap_Kd {stem}.png\n")
+        Image.fromarray(checkerboard_image()).save(files[2])
+        with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as archive:
+            for path in files:
+                archive.write(path, path.name)

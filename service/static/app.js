@@ -18,7 +18,7 @@ import {
 } from "./controllers/display.js";
 import { logOut, watchLogin } from "./controllers/login.js";
 import { openPair, upload } from "./controllers/pair.js";
-import { cancelRefine, downloadLiveMap, refine } from "./controllers/refine.js";
+import { cancelRefine, downloadLiveExport, downloadLiveMap, refine } from "./controllers/refine.js";
 import { toggleQuality } from "./controllers/quality.js";
 import { chooseSession, shareSession } from "./controllers/session.js";
 import { start } from "./controllers/startup.js";
@@ -74,6 +74,7 @@ function bindControls() {
   on("refine-button", "click", refine);
   on("cancel-refine", "click", cancelRefine);
   on("download-c", "click", downloadLiveMap);
+  each(".live-export", "click", downloadLiveExport);
 }
 
 /** Hooks for tests and benchmarks: ids are file ids, positions client pixels. */

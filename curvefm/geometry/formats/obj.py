@@ -148,9 +148,12 @@ def _texture_from_mtl(folder: Path, mtllib: bytes | None) -> str | None:
     return None
 
 
-def write_obj(mesh: Mesh, path: Path, uv: np.ndarray | None) -> None:
+def write_obj(mesh: Mesh, path: Path, uv: np.ndarray | None, material: str | None = None) -> None:
+    """``material``: the name of a material in ``<material>.mtl`` beside the file, which the faces use."""
     with open(path, "w") as f:
         f.write(f"# written by curvefm: {mesh.n_vertices} vertices, {len(mesh.faces)} faces\n")
+        if material:
+            f.write(f"mtllib {material}.mtl\nusemtl {material}\n")
         np.savetxt(f, mesh.vertices, fmt="v %.17g %.17g %.17g")
         faces = mesh.faces + 1
         if uv is not None:

@@ -1,10 +1,10 @@
 // What the Refine & export panel does: refine the live map into a pointwise one (a job whose files are offered
-// for download and whose map the target can then be shown through), cancel it, download the live map.
+// for download and whose map the target can then be shown through), cancel it, download the live map and exports.
 import { api, waitForJob } from "../api.js";
 import { pointwiseMap } from "../mesh.js";
 import { setMap, setPointwise, setRefineJob, state } from "../store.js";
 import { $ } from "../views/dom.js";
-import { listJobFiles, npyBlob, saveBlob } from "../views/downloads.js";
+import { listJobFiles, npyBlob, saveBlob, saveUrl } from "../views/downloads.js";
 import { ProgressRow, report } from "../views/messages.js";
 import { pluginChoice } from "../views/forms.js";
 import { enableRefine, showMapChoice, showRefineJob } from "../views/page.js";
@@ -76,4 +76,12 @@ export async function downloadLiveMap(event) {
   } catch (error) {
     report(error, "The map could not be downloaded");
   }
+}
+
+/** A live export the service makes (the maps as .mat, the textured target as .zip), named by the link's
+ * data-export; the server names the file after the session and revision. */
+export function downloadLiveExport(event) {
+  event.preventDefault();
+  if (!state.session) return;
+  saveUrl(`/sessions/${encodeURIComponent(state.session.id)}/exports/${event.currentTarget.dataset.export}`);
 }

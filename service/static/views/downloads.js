@@ -8,7 +8,9 @@ const JOB_FILE_ORDER = [
   "map_source_to_target.txt",
   "p2p_target_to_source.npy",
   "p2p_source_to_target.npy",
+  "maps.mat",
   "target_textured.obj",
+  "target_textured.zip",
 ];
 
 /** A rows x cols float64 matrix (array of arrays) as a NumPy .npy file (format 1.0, C order). */
@@ -28,11 +30,16 @@ export function npyBlob(matrix) {
 
 export function saveBlob(blob, name) {
   const url = URL.createObjectURL(blob);
+  saveUrl(url, name);
+  setTimeout(() => URL.revokeObjectURL(url), 10_000);
+}
+
+/** Download what ``url`` answers, saved as ``name`` (empty: the name the server gives). */
+export function saveUrl(url, name = "") {
   const link = Object.assign(document.createElement("a"), { href: url, download: name });
   document.body.append(link);
   link.click();
   link.remove();
-  setTimeout(() => URL.revokeObjectURL(url), 10_000);
 }
 
 /** Replace the job-file items of ``list`` by one download link per file (links: name -> URL). */

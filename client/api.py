@@ -1,0 +1,274 @@
+"""The client's objects: :class:`Client` (shapes, bases, sessions, jobs), :class:`Session`, :class:`Job`."""
+
+from __future__ import annotations
+
+import io
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import httpx
+import numpy as np
+from tqdm.auto import tqdm
+
+from curvefm.errors import ERROR_KINDS, CurvefmError, InternalError, InvalidInput, ResourceLimit, TooMany
+
+ENDED = ("finished", "failed", "canceled", "lost")
+DEFAULT_K = 120
+SHOWN_TEXT = 500
+
+
+class JobFailed(CurvefmError):
+    """A job ended ``failed``, ``canceled`` or ``lost``; ``info`` is its last state (``info["error"]`` says why)."""
+
+    code = "job_failed"
+
+    def __init__(self, info: dict):
+        reason = (info.get("error") or {}).get("message") or info.get("message") or ""
+        super().__init__(f"job {info['id']} ({info['kind']}) ended {info['state']}: {reason}")
+        self.info = info
+
+
+def error_of(response: httpx.Response) -> CurvefmError:
+    """The exception of an error answer: the class of its ``error`` kind, the server's ``detail`` as message."""
+    try:
+        body = response.json()
+    except ValueError:
+        body = {}
+    body = body if isinstance(body, dict) else {}
+    detail = body.get("detail") or response.text[:SHOWN_TEXT] or response.reason_phrase
+    fallback = InternalError if response.status_code >= 500 else InvalidInput
+    cls = ERROR_KINDS.get(body.get("error"), fallback)
+    if issubclass(cls, TooMany):
+        retry_after = response.headers.get("retry-after")
+        error = cls(detail, body.get("limit"), float(retry_after) if retry_after else None)
+    elif issubclass(cls, ResourceLimit):
+        error = cls(detail, body.get("limit"))
+    else:
+        error = cls(detail)
+    error.status, error.body = response.status_code, body
+    return error
+
+
+class Client:
+    """A connection to a curvefm service at ``url``, authenticated by ``token`` (default: ``CURVEFM_TOKEN``;
+    ``curvefm users add NAME`` prints one). Use it as a context manager, or :meth:`close` it."""
+
+    def __init__(self, url: str, token: str | None = None, timeout: float = 120.0):
+        token = token or os.environ.get("CURVEFM_TOKEN")
+        headers = {"Authorization": f"Bearer {token}"} if token else {}
+        self.http = httpx.Client(base_url=url.rstrip("/"), headers=headers, timeout=timeout)
+
+    def __enter__(self) -> Client:
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+
+    def close(self) -> None:
+        self.http.close()
+
+    def request(self, method: str, path: str, **kwargs) -> httpx.Response:
+        """Send a request; an error answer raises its :mod:`curvefm.errors` exception."""
+        response = self.http.request(method, path, **kwargs)
+        if response.is_error:
+            raise error_of(response)
+        return response
+
+    def json(self, method: str, path: str, **kwargs) -> Any:
+        return self.request(method, path, **kwargs).json()
+
+    def upload(self, path: str | Path, name: str | None = None) -> str:
+        """Upload a mesh file; returns its shape id (the content hash: the same mesh again gives the same id)."""
+        path = Path(path)
+        with open(path, "rb") as f:
+            data = {"name": name} if name else None
+            return self.json("POST", "/shapes", files={"file": (path.name, f)}, data=data)["id"]
+
+    def shapes(self) -> list[dict]:
+        return self.json("GET", "/shapes")
+
+    def basis(self, shape_id: str, k: int = DEFAULT_K, plugin: str = "laplace-beltrami", **params) -> Job:
+        """Request the first ``k`` basis functions of a shape (a job; it finishes at once if they exist)."""
+        body = {"k": k, "plugin": plugin, "params": params}
+        return Job(self, self.json("POST", f"/shapes/{shape_id}/bases", json=body))
+
+    def session(self, source: str, target: str, k: int = DEFAULT_K, **options) -> Session:
+        """A new session of yours on two shapes whose bases are ready; ``options``: ``alpha``, ``tracer``,
+        ``samples``, ``name``, ``sharing``, ``basis_plugin``, ``basis_params`` (see ``/docs``)."""
+        return Session(self, self.json("POST", "/sessions", json={"source": source, "target": target, "k": k,
+                                                                   **options}))
+
+    def open_session(self, session_id: str) -> Session:
+        """An existing session (yours, or one shared with you)."""
+        return Session(self, self.json("GET", f"/sessions/{session_id}"))
+
+    def sessions(self) -> list[dict]:
+        """Summaries of the sessions you may see."""
+        return self.json("GET", "/sessions")
+
+    def job(self, job_id: str) -> Job:
+        info = self.json("GET", f"/jobs/{job_id}")
+        return (RefineJob if info["kind"] == "refine" else Job)(self, info)
+
+    def plugins(self) -> dict[str, list[dict]]:
+        return self.json("GET", "/plugins")
+
+    def download(self, url: str) -> bytes:
+        return self.request("GET", url).content
+
+
+class Job:
+    """A basis or refinement job. ``info`` is its state as last fetched; :attr:`state` fetches it again."""
+
+    def __init__(self, client: Client, info: dict):
+        self.client, self.info = client, info
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.id} {self.info['kind']} {self.info['state']}>"
+
+    @property
+    def id(self) -> str:
+        return self.info["id"]
+
+    @property
+    def state(self) -> str:
+        """``queued``, ``started``, ``finished``, ``failed``, ``canceled`` or ``lost``, asked now."""
+        return self.refresh()["state"]
+
+    def refresh(self) -> dict:
+        self.info = self.client.json("GET", f"/jobs/{self.id}")
+        return self.info
+
+    def cancel(self) -> Job:
+        """Cancel the job (queued) or stop it (running); a job that ended already raises ``Conflict``."""
+        self.info = self.client.json("DELETE", f"/jobs/{self.id}")
+        return self
+
+    def wait(self, timeout: float | None = None, progress: bool = True, poll_s: float = 0.2) -> Job:
+        """Wait until the job ends, showing a progress bar (``progress=False``: none); raises :class:`JobFailed`
+        unless it finished, ``TimeoutError`` after ``timeout`` seconds."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        with tqdm(total=1.0, disable=not progress, desc=self.info["kind"], bar_format="{l_bar}{bar}| {elapsed}") as bar:
+            while self.info["state"] not in ENDED:
+                if deadline is not None and time.monotonic() > deadline:
+                    raise TimeoutError(f"job {self.id} is still {self.info['state']} after {timeout} s")
+                time.sleep(poll_s)
+                self.refresh()
+                bar.update(self.info["progress"] - bar.n)
+                bar.set_postfix_str(self.info["message"][:60], refresh=True)
+        if self.info["state"] != "finished":
+            raise JobFailed(self.info)
+        return self
+
+
+@dataclass(frozen=True)
+class Refinement:
+    """What a finished refinement job made. Maps are in file vertex ids (0-based); -1 for a vertex of no face.
+
+    ``map_target_to_source[j]`` is the source vertex for target vertex j (``p2p_NM``), ``map_source_to_target[i]``
+    the target vertex for source vertex i. ``files`` maps each result file's name to its URL (``Client.download``).
+    """
+
+    job_id: str
+    revision: int
+    converter: str
+    map_target_to_source: np.ndarray
+    map_source_to_target: np.ndarray
+    files: dict[str, str]
+
+
+class RefineJob(Job):
+    """A refinement job: :meth:`wait` answers the :class:`Refinement`."""
+
+    def wait(self, timeout: float | None = None, progress: bool = True, poll_s: float = 0.2) -> Refinement:
+        super().wait(timeout, progress, poll_s)
+        links, result = self.info["links"], self.info["result"]
+        return Refinement(
+            job_id=self.id,
+            revision=result["revision"],
+            converter=result["converter"],
+            map_target_to_source=self._array(links["p2p_target_to_source.npy"]),
+            map_source_to_target=self._array(links["p2p_source_to_target.npy"]),
+            files={name: url for name, url in links.items() if name != "self"},
+        )
+
+    def _array(self, url: str) -> np.ndarray:
+        return np.load(io.BytesIO(self.client.download(url)), allow_pickle=False)
+
+
+@dataclass(frozen=True)
+class Curve:
+    """A stored curve pair: ``source`` / ``target`` as given (waypoints or paths), ``path_source`` /
+    ``path_target`` as traced (file vertex ids)."""
+
+    id: str
+    source: list[int]
+    target: list[int]
+    tracer: str
+    path_source: list[int]
+    path_target: list[int]
+
+    @classmethod
+    def of(cls, record: dict) -> Curve:
+        spec = record["spec"]
+        return cls(record["id"], spec["source"], spec["target"], record["tracer"], record["path_source"],
+                   record["path_target"])
+
+
+class Session:
+    """A session on a shape pair: its curves, the functional maps both ways, refinements. ``record`` is the
+    session as last fetched; :attr:`curves` fetches it again."""
+
+    def __init__(self, client: Client, record: dict):
+        self.client, self.record = client, record
+
+    def __repr__(self) -> str:
+        return f"<Session {self.id} {self.record['source'][:8]} -> {self.record['target'][:8]} k={self.record['k']}>"
+
+    @property
+    def id(self) -> str:
+        return self.record["id"]
+
+    @property
+    def path(self) -> str:
+        return f"/sessions/{self.id}"
+
+    def refresh(self) -> dict:
+        self.record = self.client.json("GET", self.path)
+        return self.record
+
+    @property
+    def curves(self) -> list[Curve]:
+        """The session's curves now, in the order they were added."""
+        return [Curve.of(record) for record in self.refresh()["curves"]]
+
+    def add_curve(self, source: list[int], target: list[int], **options) -> Curve:
+        """Add a curve pair: waypoints joined by the tracer, or with ``explicit=True`` whole vertex paths (file
+        ids); ``options``: ``tracer``, ``tracer_params``, ``weight``. Both maps are updated before it answers."""
+        body = {"source": list(source), "target": list(target), **options}
+        return Curve.of(self.client.json("POST", f"{self.path}/curves", json=body)["curve"])
+
+    def replace_curve(self, curve_id: str, source: list[int], target: list[int], **options) -> Curve:
+        body = {"source": list(source), "target": list(target), **options}
+        return Curve.of(self.client.json("PUT", f"{self.path}/curves/{curve_id}", json=body)["curve"])
+
+    def remove_curve(self, curve: str | Curve) -> None:
+        curve_id = curve.id if isinstance(curve, Curve) else curve
+        self.client.request("DELETE", f"{self.path}/curves/{curve_id}")
+
+    def map(self, direction: Literal["source_to_target", "target_to_source"] = "source_to_target") -> np.ndarray:
+        """The functional map now (k x k): ``C_source_to_target`` takes coefficients of a function on the source
+        to coefficients on the target."""
+        return np.array(self.client.json("GET", f"{self.path}/map")[f"C_{direction}"])
+
+    def refine(self, converter: str = "nearest-neighbor", **params) -> RefineJob:
+        """Start pointwise maps both ways from the curves as they are now (a job; ``.wait()`` answers them)."""
+        body = {"converter": converter, "params": params}
+        return RefineJob(self.client, self.client.json("POST", f"{self.path}/refine", json=body))
+
+    def delete(self) -> None:
+        """Delete the session and its refinement results."""
+        self.client.request("DELETE", self.path)
