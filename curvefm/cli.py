@@ -57,6 +57,19 @@ def cmd_match(args) -> int:
     return 0
 
 
+def cmd_basis(args) -> int:
+    from curvefm.geometry import load_mesh
+    from curvefm.store import Store
+
+    mesh = load_mesh(args.mesh)
+    store = Store(args.data) if args.data else Store()
+    params = _json_option(args.params, "--params")
+    basis = store.ensure_basis(mesh, args.k, params=params, progress=progress_bar("basis"))
+    print(f"{mesh.name}: {basis.k} eigenpairs of {mesh.n_vertices} vertices stored in {store.root} "
+          f"(shape {mesh.content_hash})")  # fmt: skip
+    return 0
+
+
 def _json_option(text: str, option: str) -> dict:
     try:
         value = json.loads(text)
@@ -238,6 +251,13 @@ def parser() -> argparse.ArgumentParser:
     m.add_argument("--method", default="curves", help="map method plugin: curves (ours), obcs12, no17, ...")
     m.add_argument("--method-params", default="{}", help="map method parameters as JSON")
     m.set_defaults(run=cmd_match)
+
+    b = sub.add_parser("basis", parents=[data], help="compute and store a mesh's eigenbasis (match and the service "
+                                                     "find it)")  # fmt: skip
+    b.add_argument("mesh")
+    b.add_argument("--k", type=int, default=DEFAULT_K, help="basis size (default %(default)s)")
+    b.add_argument("--params", default="{}", help='laplace-beltrami parameters as JSON, e.g. \'{"method": "exact"}\'')
+    b.set_defaults(run=cmd_basis)
 
     e = sub.add_parser("evaluate", parents=[data], help="score a pair with known ground truth (../shared/data)")
     e.add_argument("source")

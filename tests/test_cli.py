@@ -50,6 +50,27 @@ def test_match_writes_maps_and_a_textured_target(pair, tmp_path):
     assert np.isfinite(textured.uv).all() and np.ptp(textured.uv[:, 1]) > 0.5
 
 
+def test_basis_is_computed_once_then_found_by_match(pair, tmp_path):
+    data = tmp_path / "data"
+    run = curvefm("basis", pair / "source.off", "--k", 30, data=data)
+    assert run.returncode == 0, run.stderr
+    assert "basis: 100%" in run.stderr  # the progress bar
+    stored = list((data / "bases").glob("*/laplace-beltrami-k30-*.npz"))
+    assert len(stored) == 1
+    written = stored[0].stat().st_mtime_ns
+    run = curvefm("match", pair / "source.off", pair / "source.off", "--curves", pair / "curves.json", "--out",
+                  tmp_path / "out", "--k", 30, data=data)  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    assert "basis found in the store" in run.stderr
+    assert list((data / "bases").glob("*/*.npz")) == stored and stored[0].stat().st_mtime_ns == written
+    assert np.load(tmp_path / "out" / "C_source_to_target.npy").shape == (30, 30)
+
+
+def test_basis_reports_bad_parameters_clearly(pair, tmp_path):
+    run = curvefm("basis", pair / "source.off", "--params", '{"method": "guess"}', data=tmp_path / "data")
+    assert run.returncode == 2 and "method" in run.stderr
+
+
 def test_match_runs_a_baseline_method_from_the_curves_endpoints(pair, tmp_path):
     out = tmp_path / "out"
     run = curvefm("match", pair / "source.off", pair / "target.obj", "--curves", pair / "curves.json", "--out", out,

@@ -71,6 +71,7 @@ def test_builtin_plugins_are_registered():
     described = registry.describe_all()
     lb = next(p for p in described["basis"] if p["name"] == "laplace-beltrami")
     assert "laplacian" in lb["parameters"]["properties"]
+    assert lb["parameters"]["properties"]["method"]["enum"] == ["auto", "exact", "multires"]
 
 
 def test_unknown_plugins_and_parameters_are_named():
@@ -78,6 +79,8 @@ def test_unknown_plugins_and_parameters_are_named():
         registry.get("tracer", "nope")
     with pytest.raises(CurvefmError, match="bad parameters for 'laplace-beltrami': laplacian"):
         registry.get("basis", "laplace-beltrami").parse_params({"laplacian": "magic"})
+    with pytest.raises(CurvefmError, match="bad parameters for 'laplace-beltrami': method"):
+        registry.get("basis", "laplace-beltrami").parse_params({"method": "guess"})
     with pytest.raises(CurvefmError, match="bad parameters for 'nearest-neighbor': colour"):
         registry.get("converter", "nearest-neighbor").parse_params({"colour": 1})
 

@@ -1,6 +1,7 @@
 """Spectral shape analysis: the first k Laplace-Beltrami eigenpairs (:class:`Basis`, always of the mesh
 scaled to unit area), the eigensolver that computes them, spectral descriptors (wave kernels), and the
-:class:`ShapePair` (two meshes with their bases) that maps are computed on.
+:class:`ShapePair` (two meshes with their bases) that maps are computed on, and an approximate
+multiresolution basis for big meshes.
 """
 
 from curvefm.spectral.basis import Basis, check_k, max_k
@@ -19,8 +20,10 @@ from curvefm.spectral.eigensolver import (
     block_lanczos,
     index_range,
     log,
+    shifted_factor,
     smallest_eigenpairs,
 )
+from curvefm.spectral.multires import multires_eigenpairs, prolongation
 from curvefm.spectral.pair import ShapePair
 
 __all__ = [
@@ -36,8 +39,11 @@ __all__ = [
     "index_range",
     "log",
     "max_k",
+    "multires_eigenpairs",
     "multiplication_operators",
     "normalised",
+    "prolongation",
+    "shifted_factor",
     "smallest_eigenpairs",
     "wave_kernel_maps",
     "wave_kernel_signature",
