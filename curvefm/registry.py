@@ -80,6 +80,10 @@ class TracerPlugin(Plugin[P]):
 @dataclass(frozen=True)
 class BasisPlugin(Plugin[P]):
     run: Callable[[Mesh, int, P, Progress], Basis]
+    storage_params: Callable[[P], dict] = lambda params: params.model_dump()
+    """The parameters a stored basis is filed under (:meth:`curvefm.store.Store.ensure_basis`): all of them, unless
+    the plugin leaves out one that only chooses how to compute it, so that adding such a parameter keeps finding
+    the bases stored before it existed."""
 
 
 def no_basis_size(params: BaseModel) -> int:

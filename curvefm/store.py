@@ -146,20 +146,24 @@ class Store:
     ):
         """A stored basis with at least k functions (truncated to k), or None. ``params`` default to the
         plugin's defaults, the form :meth:`ensure_basis` stores under."""
-        canonical = registry.load("basis", plugin, params)[1].model_dump()
-        return self._find_basis(mesh_hash, k, plugin, canonical)
+        path = self._basis_file(mesh_hash, k, plugin, _storage_params(plugin, params))
+        return None if path is None else Basis.from_bytes(path.read_bytes()).truncated(k)
 
-    def _find_basis(self, mesh_hash: str, k: int, plugin: str, canonical: dict):
-        """:meth:`find_basis` with the parameters already parsed and dumped (``Params.model_dump()``)."""
+    def has_basis(
+        self, mesh_hash: str, k: int, plugin: str = "laplace-beltrami", params: dict | BaseModel | None = None
+    ) -> bool:
+        """Whether :meth:`find_basis` would find one, without loading it."""
+        return self._basis_file(mesh_hash, k, plugin, _storage_params(plugin, params)) is not None
+
+    def _basis_file(self, mesh_hash: str, k: int, plugin: str, canonical: dict) -> Path | None:
+        """The smallest stored basis with at least k functions, its parameters as the plugin stores them."""
         folder = self.root / "bases" / mesh_hash
         best = None
         for path in folder.glob(f"{plugin}-k*-{params_key(canonical)}.npz"):
             stored_k = int(path.name[len(plugin) + 2 :].split("-")[0])
             if stored_k >= k and (best is None or stored_k < best[0]):
                 best = (stored_k, path)
-        if best is None:
-            return None
-        return Basis.from_bytes(best[1].read_bytes()).truncated(k)
+        return None if best is None else best[1]
 
     def stored_bases(self, mesh_hash: str) -> list[dict]:
         out = []
@@ -176,8 +180,10 @@ class Store:
             shutil.rmtree(self.root / "bases" / mesh_hash, ignore_errors=True)
         return removed
 
-    def put_basis(self, mesh_hash: str, basis: Basis, plugin: str, params: dict) -> None:
-        atomic_write(self.basis_path(mesh_hash, plugin, basis.k, params), basis.to_bytes())
+    def put_basis(self, mesh_hash: str, basis: Basis, plugin: str, params: dict | BaseModel | None = None) -> None:
+        """Store a basis computed by ``plugin`` with ``params``, filed as the plugin files them."""
+        path = self.basis_path(mesh_hash, plugin, basis.k, _storage_params(plugin, params))
+        atomic_write(path, basis.to_bytes())
 
     def ensure_basis(
         self,
@@ -189,16 +195,21 @@ class Store:
     ) -> Basis:
         """The stored basis, or compute it with the named basis plugin and store it."""
         basis_plugin, parsed = registry.load("basis", plugin, params)
-        canonical = parsed.model_dump()
+        canonical = basis_plugin.storage_params(parsed)
         mesh_hash = self.put_mesh(mesh)
-        found = self._find_basis(mesh_hash, k, plugin, canonical)
+        found = self._basis_file(mesh_hash, k, plugin, canonical)
         if found is not None:
             progress(1.0, "basis found in the store")
-            return found
+            return Basis.from_bytes(found.read_bytes()).truncated(k)
         basis = basis_plugin.run(mesh, k, parsed, progress)
-        self.put_basis(mesh_hash, basis, plugin, canonical)
+        self.put_basis(mesh_hash, basis, plugin, parsed)
         return basis
 
 
 def _safe_id(identifier: str) -> bool:
     return isinstance(identifier, str) and identifier.isalnum() and 0 < len(identifier) <= 64
+
+
+def _storage_params(plugin: str, params: dict | BaseModel | None) -> dict:
+    basis_plugin, parsed = registry.load("basis", plugin, params)
+    return basis_plugin.storage_params(parsed)

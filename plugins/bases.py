@@ -49,10 +49,16 @@ def compute_laplace_beltrami(
     return Basis(np.maximum(evals, 0.0), evecs, mass)
 
 
+def stored_as(params: LaplaceBeltramiParams) -> dict:
+    """``method = auto`` is left out: bases stored before the parameter existed (all exact) are found under it."""
+    return params.model_dump(exclude={"method"} if params.method == "auto" else None)
+
+
 LAPLACE_BELTRAMI = BasisPlugin(
     name="laplace-beltrami",
     description="First k eigenpairs of the Laplace-Beltrami operator (shift-invert, or multiresolution on big "
     "meshes), on the unit-area mesh",
     Params=LaplaceBeltramiParams,
     run=compute_laplace_beltrami,
+    storage_params=stored_as,
 )

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from conftest import unavailable
 from scipy.sparse.linalg import eigsh
 
 from curvefm.geometry import cotangent_laplacian, load_mesh
@@ -28,7 +29,7 @@ def mesh_problem(request, shared_data):
 @pytest.fixture(params=["cholmod", "superlu"])
 def factorisation(request, monkeypatch):
     if request.param == "cholmod" and eigen.cholmod is None:
-        pytest.skip("scikit-sparse is not installed: CHOLMOD is optional (scripts/setup.sh installs it)")
+        unavailable("scikit-sparse is not installed: CHOLMOD is optional (scripts/setup.sh installs it)")
     if request.param == "superlu":
         monkeypatch.setattr(eigen, "cholmod", None)
     return request.param

@@ -27,7 +27,7 @@ from curvefm.session import (
     load_pair,
 )
 from curvefm.session.live import LOCK_STRIPES
-from curvefm.store import Store
+from curvefm.store import Store, params_key
 
 K = 20
 ENDPOINTS = [(0, 600), (100, 900), (250, 1100), (40, 700)]
@@ -227,3 +227,18 @@ def test_concurrent_adds_through_two_editors_are_all_kept(store):
     assert sorted(revision for _, revision in acknowledged) == list(range(1, 25)) and stored.revision == 24
     for editor in editors:
         editor.live.close()
+
+
+def test_bases_stored_before_the_method_parameter_are_found_and_explicit_methods_are_filed_apart(tmp_path, shapes):
+    store = Store(tmp_path / "data")
+    (mesh, basis), _ = shapes
+    mesh_hash = store.put_mesh(mesh)
+    legacy = store.root / "bases" / mesh_hash / f"laplace-beltrami-k{K}-{params_key({'laplacian': 'cotangent'})}.npz"
+    legacy.parent.mkdir(parents=True)
+    legacy.write_bytes(basis.to_bytes())  # as an earlier version filed it
+    assert store.has_basis(mesh_hash, K) and store.has_basis(mesh_hash, K, params={"method": "auto"})
+    np.testing.assert_array_equal(store.find_basis(mesh_hash, K).evals, basis.evals)
+    assert not store.has_basis(mesh_hash, K, params={"method": "exact"})  # asked for by name: computed as asked
+    store.put_basis(mesh_hash, basis, "laplace-beltrami", {"method": "exact"})
+    assert store.has_basis(mesh_hash, K, params={"method": "exact"})
+    assert not store.has_basis(mesh_hash, K, params={"method": "multires"})

@@ -29,9 +29,9 @@ def compute_basis(
     with running_job() as job:
         store = Store(data_dir)
         mesh = store.get_mesh(mesh_id)
-        _, parsed = registry.load("basis", plugin, params)
+        basis_plugin, parsed = registry.load("basis", plugin, params)
         store.ensure_basis(mesh, k, plugin, parsed, job.progress)
-        canonical = parsed.model_dump()
+        canonical = basis_plugin.storage_params(parsed)
         return {
             "shape": mesh_id,
             "k": k,

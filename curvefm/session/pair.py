@@ -12,7 +12,7 @@ from curvefm.errors import Conflict
 from curvefm.fmap import CurveMapSolver
 from curvefm.session.record import CurveRecord, SessionRecord
 from curvefm.spectral import Basis, ShapePair
-from curvefm.store import Store, params_key
+from curvefm.store import Store
 
 
 @dataclass(frozen=True)
@@ -46,11 +46,7 @@ def basis_needs(record: SessionRecord) -> tuple[BasisNeed, BasisNeed]:
 
 def basis_available(store: Store, need: BasisNeed) -> bool:
     """Whether the basis exists (at least ``need.k`` functions), without loading it."""
-    key = params_key(need.params)
-    return any(
-        b["plugin"] == need.plugin and b["params_key"] == key and b["k"] >= need.k
-        for b in store.stored_bases(need.mesh_id)
-    )
+    return store.has_basis(need.mesh_id, need.k, need.plugin, need.params)
 
 
 def load_basis(store: Store, need: BasisNeed) -> Basis:
