@@ -1,5 +1,6 @@
 """Functional maps: curve restriction, the curve-constrained solver (column-separable exact solves), the
-paper's CG and an L-BFGS reference, the descriptor baselines' energies, and function transfer through a map.
+paper's CG and an L-BFGS reference, the combined energy (curves, descriptors and landmark kernels), the
+descriptor baselines' energies, and function transfer through a map.
 """
 
 from curvefm.fmap.baselines import (
@@ -17,6 +18,13 @@ from curvefm.fmap.column_solve import (
     solve_both,
     solve_columns,
 )
+from curvefm.fmap.combined import (
+    DEFAULT_COMBINED_ALPHA,
+    DEFAULT_DESCRIPTOR_WEIGHT,
+    DEFAULT_KERNEL_WEIGHT,
+    KERNEL_POINTS,
+    CombinedMapSolver,
+)
 from curvefm.fmap.maps import FunctionalMaps, Hints, curve_endpoints
 from curvefm.fmap.reference_solvers import conjugate_gradient_solve, quasi_newton_solve
 from curvefm.fmap.restriction import DEFAULT_SAMPLES, resample, restrict, restriction_operator
@@ -24,15 +32,20 @@ from curvefm.fmap.solver import DEFAULT_ALPHA, DEFAULT_K, CurveMapSolver, CurveT
 from curvefm.fmap.transfer import FunctionTransfer, transfer
 
 __all__ = [
+    "CombinedMapSolver",
     "CurveMapSolver",
     "CurveTerm",
     "DEFAULT_ALPHA",
+    "DEFAULT_COMBINED_ALPHA",
+    "DEFAULT_DESCRIPTOR_WEIGHT",
+    "DEFAULT_KERNEL_WEIGHT",
     "DEFAULT_K",
     "DEFAULT_SAMPLES",
     "DescriptorEnergy",
     "FunctionTransfer",
     "FunctionalMaps",
     "Hints",
+    "KERNEL_POINTS",
     "PARALLEL_MIN_SIZE",
     "RIDGE",
     "check_method_k",

@@ -6,6 +6,7 @@ scaled to unit area), the eigensolver that computes them, spectral descriptors (
 from curvefm.spectral.basis import Basis, check_k, max_k
 from curvefm.spectral.descriptors import (
     curve_function,
+    energy_filters,
     multiplication_operators,
     normalised,
     wave_kernel_maps,
@@ -33,6 +34,7 @@ __all__ = [
     "block_lanczos",
     "check_k",
     "curve_function",
+    "energy_filters",
     "index_range",
     "log",
     "max_k",

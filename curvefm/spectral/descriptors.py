@@ -34,6 +34,12 @@ def _energy_filters(evals: np.ndarray, n_energies: int, sigma: float) -> np.ndar
     return filters / filters.sum(axis=1, keepdims=True)
 
 
+def energy_filters(evals: np.ndarray, n_energies: int = 20, sigma: float = 0.06) -> np.ndarray:
+    """The wave kernels' band filters ``g_e(lam_k)`` (n_energies x k-1, the constant eigenfunction skipped): the
+    wave kernel map at p with energy e has the coefficients ``g_e(lam_k) phi_k(p)``."""
+    return _energy_filters(evals, n_energies, sigma)
+
+
 def wave_kernel_signature(basis: Basis, n_energies: int = 20, sigma: float = 0.06) -> np.ndarray:
     """WKS, (n, n_energies), at energies evenly spaced over the log-eigenvalues."""
     filters = _energy_filters(basis.evals, n_energies, sigma)
