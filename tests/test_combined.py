@@ -6,11 +6,22 @@ import numpy as np
 import pytest
 from shapes import basis_of, ellipsoid
 
+from curvefm import registry
 from curvefm.evaluation import ground_truth_curves, ground_truth_for, score
 from curvefm.fmap import CombinedMapSolver, CurveMapSolver, restrict
 from curvefm.fmap.combined import kernel_coefficients, signature_coefficients
 from curvefm.geometry import load_mesh, shortest_path
 from curvefm.matching import match
+from curvefm.session import (
+    CurveSpec,
+    LiveSessions,
+    SessionCreate,
+    SessionEditor,
+    SessionRecord,
+    SessionStore,
+    build_solver,
+    load_pair,
+)
 from curvefm.store import Store
 
 K = 12
@@ -109,3 +120,52 @@ def test_with_two_curves_the_combined_default_beats_the_curve_energy_clearly(fau
     errors = {method: score(match(M, N, curves, store=store, method=method), truth)["source_to_target"]["mean_area"]
               for method in ("combined", "curves")}  # fmt: skip
     assert errors["combined"] <= 0.85 * errors["curves"], errors
+
+
+@pytest.fixture
+def sessions(tmp_path, shapes):
+    store = Store(tmp_path / "data")
+    params = registry.get("basis", "laplace-beltrami").parse_params({}).model_dump()
+    M, bM, N, bN = shapes
+    ids = [store.put_mesh(mesh) for mesh in (M, N)]
+    for mesh_id, basis in zip(ids, (bM, bN), strict=True):
+        store.put_basis(mesh_id, basis, "laplace-beltrami", params)
+    return store, ids
+
+
+def editor_on(store):
+    records = SessionStore(store.root)
+    return SessionEditor(records, LiveSessions(store, records))
+
+
+def test_sessions_keep_their_energy_across_a_reload(sessions):
+    store, (source, target) = sessions
+    editor = editor_on(store)
+    created = {energy: editor.create(SessionCreate(source=source, target=target, k=K, **energy_field))
+               for energy, energy_field in (("combined", {}), ("curves", {"energy": "curves"}))}  # fmt: skip
+    assert {energy: record.energy for energy, record in created.items()} == {"combined": "combined", "curves": "curves"}
+    spec = CurveSpec(source=list(ENDPOINTS[0]), target=list(ENDPOINTS[0]))
+    maps = {}
+    for energy, record in created.items():
+        editor.add_curve(record.id, spec)
+        maps[energy] = editor.maps(record.id)[0]
+    reloaded = editor_on(store)  # another process: records from disk, solvers rebuilt
+    for energy, record in created.items():
+        C_MN, _, stored = reloaded.maps(record.id)
+        assert stored.energy == energy
+        assert np.allclose(C_MN, maps[energy], rtol=0, atol=1e-12)
+    assert not np.allclose(maps["combined"], maps["curves"], atol=1e-3)
+
+
+def test_a_record_written_before_energies_existed_keeps_the_curve_energy(sessions):
+    store, (source, target) = sessions
+    records = SessionStore(store.root)
+    old = SessionRecord(id="old", source=source, target=target, k=K, alpha=100.0, samples=100, tracer="geodesic",
+                        basis_plugin="laplace-beltrami", basis_params={}, created_at=0.0, updated_at=0.0)
+    on_disk = old.model_dump(mode="json")
+    on_disk.pop("energy")
+    assert SessionRecord.model_validate(on_disk).energy == "curves"
+    records.create(SessionRecord.model_validate(on_disk))
+    pair = load_pair(store, records.read("old"))
+    with build_solver(records.read("old"), pair) as solver:
+        assert type(solver) is CurveMapSolver
