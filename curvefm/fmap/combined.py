@@ -48,7 +48,7 @@ KERNEL_POINTS = 2
 ENERGIES = 20
 SIGMA = 0.06
 
-_SIGNATURES: LRU[tuple[np.ndarray, ...]] = LRU(16)
+_SIGNATURES: LRU[np.ndarray] = LRU(16)  # by basis content: every session on a shape shares them
 
 
 def signature_products(basis_M: Basis, basis_N: Basis) -> np.ndarray:
