@@ -29,7 +29,7 @@ def main():
         curves = ground_truth_curves(M, N, truth, 10)
         row = {"pair": f"{source} -> {target}", "errors": {}}
         for alpha in ALPHAS:
-            result = match(M, N, curves, alpha=alpha, store=store)
+            result = match(M, N, curves, alpha=alpha, store=store, method="curves")
             row["errors"][str(alpha)] = round(score(result, truth)["source_to_target"]["mean_area"], 4)
         table.append(row)
     mean = {str(a): round(sum(r["errors"][str(a)] for r in table) / len(table), 4) for a in ALPHAS}

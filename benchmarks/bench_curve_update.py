@@ -1,9 +1,10 @@
 """Curve-update latency (add a curve, both directions solved) on FAUST tr_reg_000 -> tr_reg_011.
 
-Compares, at k = 30, 60, 120, 200: our update (restriction + re-sum + per-column exact systems, both
-directions), the paper's conjugate gradients (Algorithm 2) warm-started from the previous map, both
-directions, and a dense direct solve of the k^2 x k^2 system (k <= 60). Also: texture transfer to a
-~30k-vertex mesh (TOSCA cat). Prints one JSON object.
+For each energy (``curves``, the paper's; ``combined``, curves plus wave kernel signatures and kernel maps
+along the curves, the default) it compares, at k = 30, 60, 120, 200: our update (restriction + re-sum +
+per-column exact systems, both directions), the paper's conjugate gradients (Algorithm 2) on the same
+energy, warm-started from the previous map, both directions, and a dense direct solve of the k^2 x k^2
+system (k <= 60). Also: texture transfer to a ~30k-vertex mesh (TOSCA cat). Prints one JSON object.
 """
 
 import json
@@ -11,11 +12,12 @@ import json
 import numpy as np
 from common import bench_store, machine, median_ms, shared_data
 
-from curvefm.fmap import CurveMapSolver, FunctionTransfer, conjugate_gradient_solve
+from curvefm.fmap import CombinedMapSolver, CurveMapSolver, FunctionTransfer, conjugate_gradient_solve
 from curvefm.geometry import farthest_point_sampling, load_mesh, shortest_path
 from curvefm.runtime import limit_blas_threads
 
 REPEAT = 31
+SOLVERS = {"curves": CurveMapSolver, "combined": CombinedMapSolver}
 
 
 def curve_paths(mesh, count):
@@ -23,8 +25,8 @@ def curve_paths(mesh, count):
     return [shortest_path(mesh.edge_graph, a, b) for a, b in zip(ends[0::2], ends[1::2], strict=True)]
 
 
-def update_latency(M, bM, N, bN, k, paths):
-    solver = CurveMapSolver(M.vertices, bM, N.vertices, bN, k=k)
+def update_latency(M, bM, N, bN, k, paths, energy):
+    solver = SOLVERS[energy](M.vertices, bM, N.vertices, bN, k=k)
     solver.add_curves([(p, p, 1.0) for p in paths[:-1]])
     last = paths[-1]
 
@@ -35,7 +37,7 @@ def update_latency(M, bM, N, bN, k, paths):
     ours = median_ms(add_and_remove, REPEAT) / 2  # two updates per call
     solver.add_curve(last, last)
     G_M, G_N, B = solver.normal_equations()
-    previous = CurveMapSolver(M.vertices, bM, N.vertices, bN, k=k)
+    previous = SOLVERS[energy](M.vertices, bM, N.vertices, bN, k=k)
     previous.add_curves([(p, p, 1.0) for p in paths[:-1]])
     iterations = []
 
@@ -48,6 +50,7 @@ def update_latency(M, bM, N, bN, k, paths):
     cg = median_ms(paper_cg, 3 if k >= 120 else REPEAT)
     C_cg = paper_cg()
     result = {
+        "energy": energy,
         "k": k,
         "ours_ms": round(ours, 2),
         "paper_cg_warm_ms": round(cg, 2),
@@ -80,7 +83,7 @@ def main():
     M, N = load_mesh(data / "faust" / "tr_reg_000.off"), load_mesh(data / "faust" / "tr_reg_011.off")
     bM, bN = store.ensure_basis(M, 200), store.ensure_basis(N, 200)
     paths = curve_paths(M, 10)
-    updates = [update_latency(M, bM, N, bN, k, paths) for k in (30, 60, 120, 200)]
+    updates = [update_latency(M, bM, N, bN, k, paths, energy) for energy in SOLVERS for k in (30, 60, 120, 200)]
     print(json.dumps({"benchmark": "curve_update", "machine": machine(), "pair": "FAUST tr_reg_000 -> tr_reg_011",
                       "curves": 10, "update_both_directions": updates, "transfer": transfer_latency(store)}, indent=1))
 

@@ -13,7 +13,7 @@ from dataclasses import fields
 from pathlib import Path
 
 from curvefm.errors import CurvefmError, InternalError, InvalidInput
-from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K
+from curvefm.fmap import DEFAULT_K
 from curvefm.runtime import limit_blas_threads
 from curvefm.session import SessionLimits
 
@@ -244,11 +244,11 @@ def parser() -> argparse.ArgumentParser:
     m.add_argument("--curves", required=True, help='JSON: {"curves": [{"source": [i, j], "target": [p, q]}]}')
     m.add_argument("--out", required=True, help="output folder")
     m.add_argument("--k", type=int, default=DEFAULT_K, help="basis size (default %(default)s)")
-    m.add_argument("--alpha", type=float, default=DEFAULT_ALPHA, help="commutativity weight (default %(default)s)")
+    m.add_argument("--alpha", type=float, help="commutativity weight (default: the method's own)")
     m.add_argument("--tracer", default="geodesic", help="default curve tracer plugin (default %(default)s)")
     m.add_argument("--refine", default="nearest-neighbor", help="converter plugin for the pointwise maps")
     m.add_argument("--refine-params", default="{}", help="converter parameters as JSON")
-    m.add_argument("--method", default="curves", help="map method plugin: curves (ours), obcs12, no17, ...")
+    m.add_argument("--method", default="combined", help="map method plugin: combined, curves, obcs12, no17, ...")
     m.add_argument("--method-params", default="{}", help="map method parameters as JSON")
     m.set_defaults(run=cmd_match)
 
@@ -264,8 +264,8 @@ def parser() -> argparse.ArgumentParser:
     e.add_argument("target")
     e.add_argument("--curves", type=int, default=10, help="number of curves from the ground truth")
     e.add_argument("--k", type=int, default=DEFAULT_K)
-    e.add_argument("--alpha", type=float, default=DEFAULT_ALPHA)
-    e.add_argument("--method", default="curves", help="map method plugin: curves (ours), obcs12, no17, ...")
+    e.add_argument("--alpha", type=float, help="commutativity weight (default: the method's own)")
+    e.add_argument("--method", default="combined", help="map method plugin: combined, curves, obcs12, no17, ...")
     e.add_argument("--method-params", default="{}", help="map method parameters as JSON")
     e.add_argument("--json", action="store_true", help="print the full report as JSON")
     e.set_defaults(run=cmd_evaluate)

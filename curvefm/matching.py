@@ -17,7 +17,7 @@ from pydantic import BaseModel
 
 from curvefm import registry
 from curvefm.errors import InvalidInput
-from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K, DEFAULT_SAMPLES, FunctionalMaps, Hints, transfer
+from curvefm.fmap import DEFAULT_K, FunctionalMaps, Hints, transfer
 from curvefm.geometry import Mesh, save_mesh, save_textured_zip, texture_coordinates
 from curvefm.pointwise import PointwiseMaps, compare, initial_maps, measure
 from curvefm.progress import Progress, no_progress, scaled
@@ -104,26 +104,27 @@ def match(
     mesh_N: Mesh,
     curves: list[CurveSpec] | list[tuple[np.ndarray, np.ndarray]],
     k: int = DEFAULT_K,
-    alpha: float = DEFAULT_ALPHA,
+    alpha: float | None = None,
     tracer: str = "geodesic",
     converter: str = "nearest-neighbor",
     converter_params: dict | None = None,
     store: Store | None = None,
-    samples: int = DEFAULT_SAMPLES,
+    samples: int | None = None,
     progress: Progress = no_progress,
-    method: str = "curves",
+    method: str = "combined",
     method_params: dict | None = None,
 ) -> MatchResult:
     """Bases (from the store or computed), curves traced, both functional maps, pointwise maps.
 
     ``curves`` are :class:`CurveSpec` (file ids, traced here) or ready ``(path_M, path_N)`` internal paths.
-    ``method`` is a map-method plugin (``curves``, ours, by default; ``obcs12`` and ``no17`` use the curves'
-    endpoints as landmarks); ``alpha`` and ``samples`` are defaults for the methods that take them.
+    ``method`` is a map-method plugin (``combined``, the default, and ``curves`` are ours; ``obcs12`` and ``no17``
+    use the curves' endpoints as landmarks); ``alpha`` and ``samples``, where given, go to the methods that take
+    them (else each method's own default).
     """
     store = store or Store()
     method_plugin = registry.get("method", method)
     shared = {name: value for name, value in {"alpha": alpha, "samples": samples}.items()
-              if name in method_plugin.Params.model_fields}  # fmt: skip
+              if value is not None and name in method_plugin.Params.model_fields}  # fmt: skip
     method_parsed = method_plugin.parse_params(shared | (method_params or {}))
     converter_plugin, converter_parsed = registry.load("converter", converter, converter_params)
     basis_k = max(k, converter_plugin.basis_size(converter_parsed))  # refiners such as ZoomOut use larger bases

@@ -1,6 +1,8 @@
-"""Method plugins ``curves``, ``obcs12`` and ``no17``: functional maps from curves or landmarks.
+"""Method plugins ``combined`` (the default), ``curves``, ``obcs12`` and ``no17``: functional maps from curves
+or landmarks.
 
-See :mod:`curvefm.fmap.baselines` for the energies. The descriptor baselines follow pyFM 1.3's setup:
+See :mod:`curvefm.fmap.combined` and :mod:`curvefm.fmap.baselines` for the energies. The descriptor baselines
+follow pyFM 1.3's setup:
 wave kernel signatures and wave kernel maps at the landmarks from the first ``spectrum`` eigenpairs, a map
 of size ``k`` (smaller than ours: descriptor methods degrade in large bases, see docs/results.md), each term
 divided by its typical size (:func:`curvefm.fmap.balanced_weights`). What made them as accurate as pyFM
@@ -19,8 +21,13 @@ from pydantic import BaseModel, ConfigDict, Field
 from curvefm.errors import InvalidInput
 from curvefm.fmap import (
     DEFAULT_ALPHA,
+    DEFAULT_COMBINED_ALPHA,
+    DEFAULT_DESCRIPTOR_WEIGHT,
+    DEFAULT_KERNEL_WEIGHT,
     DEFAULT_SAMPLES,
     EXACT_MAX_K,
+    KERNEL_POINTS,
+    CombinedMapSolver,
     CurveMapSolver,
     DescriptorEnergy,
     FunctionalMaps,
@@ -53,20 +60,43 @@ class CurvesParams(BaseModel):
     samples: int = Field(DEFAULT_SAMPLES, ge=2, le=10_000, description="uniform samples per curve")
 
 
+class CombinedParams(CurvesParams):
+    alpha: float = Field(DEFAULT_COMBINED_ALPHA, ge=0, description="weight of Laplacian commutativity")
+    descriptor_weight: float = Field(
+        DEFAULT_DESCRIPTOR_WEIGHT, ge=0, description="weight of wave kernel signature preservation"
+    )
+    kernel_weight: float = Field(
+        DEFAULT_KERNEL_WEIGHT, ge=0, description="weight of the wave kernel maps at samples along the curves"
+    )
+    kernel_points: int = Field(
+        KERNEL_POINTS, ge=2, le=100, description="curve samples with wave kernel maps, endpoints included"
+    )
+
+
 def run_curves(
     pair: ShapePair, hints: Hints, params: CurvesParams, progress: Progress = no_progress
 ) -> FunctionalMaps:
+    return _solve_curves(CurveMapSolver, pair, hints, params.model_dump(), progress)
+
+
+def run_combined(
+    pair: ShapePair, hints: Hints, params: CombinedParams, progress: Progress = no_progress
+) -> FunctionalMaps:
+    return _solve_curves(CombinedMapSolver, pair, hints, params.model_dump(), progress)
+
+
+def _solve_curves(
+    solver_class: type[CurveMapSolver], pair: ShapePair, hints: Hints, params: dict, progress: Progress
+) -> FunctionalMaps:
     if not hints.curves:
-        raise InvalidInput("the 'curves' method needs at least one pair of curves")
+        raise InvalidInput("the curve-based methods need at least one pair of curves")
     k = min(pair.basis_M.k, pair.basis_N.k)
-    solver = CurveMapSolver(
-        pair.mesh_M.vertices, pair.basis_M, pair.mesh_N.vertices, pair.basis_N,
-        k=k, alpha=params.alpha, samples=params.samples,
-    )  # fmt: skip
-    weights = hints.weights or (1.0,) * len(hints.curves)
-    solver.add_curves([(pm, pn, w) for (pm, pn), w in zip(hints.curves, weights, strict=True)])
-    progress(1.0, "curve-constrained maps solved")
-    return FunctionalMaps(solver.C_MN, solver.C_NM)
+    vertices_and_bases = (pair.mesh_M.vertices, pair.basis_M, pair.mesh_N.vertices, pair.basis_N)
+    with solver_class(*vertices_and_bases, k=k, **params) as solver:
+        weights = hints.weights or (1.0,) * len(hints.curves)
+        solver.add_curves([(pm, pn, w) for (pm, pn), w in zip(hints.curves, weights, strict=True)])
+        progress(1.0, "maps solved")
+        return FunctionalMaps(solver.C_MN, solver.C_NM)
 
 
 class DescriptorParams(BaseModel):
@@ -183,6 +213,13 @@ def _quasi_newton(energy: DescriptorEnergy, max_iter: int) -> np.ndarray:
     return lbfgs(energy, start, max_iter)[0]
 
 
+COMBINED = MethodPlugin(
+    name="combined",
+    description="Curve constraints plus wave kernel signatures and wave kernel maps along the curves, Laplacian "
+    "commutativity: exact per-column solve (the default)",
+    Params=CombinedParams,
+    run=run_combined,
+)
 CURVES = MethodPlugin(
     name="curves",
     description="Curve-constrained functional maps (Gehre et al. 2018): exact per-column solve",

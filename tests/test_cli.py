@@ -85,7 +85,7 @@ def test_match_runs_a_baseline_method_from_the_curves_endpoints(pair, tmp_path):
 @pytest.mark.parametrize(
     "options, message",
     [
-        (["--method", "magic"], "unknown method 'magic'; installed methods: curves, no17, obcs12"),
+        (["--method", "magic"], "unknown method 'magic'; installed methods: combined, curves, no17, obcs12"),
         (["--method", "obcs12", "--method-params", '{"k": 0}'], "bad parameters for 'obcs12': k"),
         (["--method-params", "[1"], "--method-params must be a JSON object"),
         (["--method", "obcs12", "--method-params", '{"k": 50}'], "k = 50 but the bases have only 20"),

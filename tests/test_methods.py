@@ -158,7 +158,7 @@ def test_every_method_maps_a_shape_to_its_stretched_copy(shapes, hints, name, pa
 
 
 def test_methods_report_bad_input(shapes, hints):
-    with pytest.raises(CurvefmError, match="unknown method 'magic'; installed methods: curves, no17, obcs12"):
+    with pytest.raises(CurvefmError, match="unknown method 'magic'; installed methods: combined, curves, no17, obcs12"):
         registry.get("method", "magic")
     with pytest.raises(CurvefmError, match="bad parameters for 'no17': inputs"):
         registry.get("method", "no17").parse_params({"inputs": "pictures"})

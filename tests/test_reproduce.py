@@ -11,8 +11,8 @@ import pytest
 from curvefm.errors import CurvefmError
 from curvefm.evaluation.reproduce import reproduce
 from curvefm.evaluation.reproduce.accuracy import VARIANTS
-from curvefm.evaluation.reproduce.datasets import NON_ISOMETRIC
-from curvefm.evaluation.reproduce.report import INTERACTIVE_MS, NEAR_EXACT
+from curvefm.evaluation.reproduce.datasets import DATASETS, NON_ISOMETRIC
+from curvefm.evaluation.reproduce.report import INTERACTIVE_MS, NEAR_EXACT, SAME_INPUTS
 
 
 @pytest.fixture(scope="module")
@@ -75,7 +75,7 @@ def test_plots_and_a_report_with_every_claim(run):
     assert "![faust](accuracy_faust.png)" in report and "![timing](timing.png)" in report
     claims = load(results, "results.json")["claims"]
     expected = expected_verdicts(load(results, "accuracy.json")["summary"], load(results, "timing.json"))
-    assert len(claims) == len(expected) == 7
+    assert len(claims) == len(expected) == 8
     for claim in claims:
         (start,) = [start for start in expected if claim["claim"].startswith(start)]
         assert claim["verdict"] == expected[start], (claim, expected[start])
@@ -111,6 +111,11 @@ def expected_verdicts(summary: dict, timing: dict) -> dict[str, str]:
         "Curves as constraints beat": [
             mean(d, ours, c) < mean(d, "no17-curves", c) for d in summary for c in counts(d, "no17-curves")
         ],
+        "The default (combined) is at least as good": [
+            mean(d, "combined-traced", c) <= min(mean(d, v, c) for v in ("curves-traced", "obcs12", "no17"))
+            for d in summary
+            for c in counts(d, "combined-traced")
+        ],
         "The solver is interactive": [
             all(row["ours"]["ms"] <= INTERACTIVE_MS for row in timing["by_count"]),
             all(row["quasi_newton"]["ms"] > INTERACTIVE_MS for row in timing["by_count"]),
@@ -131,3 +136,13 @@ def test_bad_requests_are_named(tmp_path, monkeypatch):
     done = subprocess.run([sys.executable, "-m", "curvefm.cli", "reproduce", "--out", str(tmp_path / "r")],
                           capture_output=True, text=True, env=env)  # fmt: skip
     assert done.returncode == 2 and "shared data folder not found" in done.stderr
+
+
+def test_the_report_names_the_winner_of_every_dataset_and_curve_count(run):
+    report = (run / "results.md").read_text()
+    labels = {v.key: v.label for v in VARIANTS}
+    for dataset, by_variant in load(run, "accuracy.json")["summary"].items():
+        for count in (1, 5, 20):
+            means = {v: by_variant[v][str(count)]["mean"] for v in SAME_INPUTS}
+            best = min(means, key=means.get)
+            assert f"| {DATASETS[dataset]} | {count} | {labels[best]} | {means[best]:.3f} |" in report

@@ -142,3 +142,21 @@ def test_a_deleted_curve_comes_back_under_its_id_at_its_place(server):
     assert server.client.post(url, params={"curve_id": "x1"}, json=spec).status_code == 422
     fresh = server.client.post(url, json=spec).raise_for_status().json()["curve"]["id"]
     assert fresh == f"c{record['next_curve']}"  # giving an id back does not move the next one
+
+
+def test_new_sessions_use_the_combined_energy_unless_they_ask_for_curves(server):
+    source, target = server.shapes
+    request = {"source": source, "target": target, "k": K}
+    created = {energy: server.client.post("/sessions", json=request | extra)
+               for energy, extra in (("combined", {}), ("curves", {"energy": "curves"}))}  # fmt: skip
+    maps = {}
+    for energy, response in created.items():
+        session = response.raise_for_status().json()
+        assert session["energy"] == energy
+        url = f"/sessions/{session['id']}"
+        server.client.post(f"{url}/curves", json={"source": [19, 432], "target": [19, 432]}).raise_for_status()
+        assert server.client.get(url).json()["energy"] == energy
+        maps[energy] = np.array(server.client.get(f"{url}/map").json()["C_source_to_target"])
+    assert not np.allclose(maps["combined"], maps["curves"], atol=1e-3)
+    refused = server.client.post("/sessions", json=request | {"energy": "magic"})
+    assert refused.status_code == 422 and "energy" in refused.text

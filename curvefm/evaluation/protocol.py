@@ -17,7 +17,7 @@ import numpy as np
 from curvefm.errors import InvalidInput
 from curvefm.evaluation.ground_truth import GroundTruth, ground_truth_for
 from curvefm.evaluation.metrics import evaluate_map
-from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K
+from curvefm.fmap import DEFAULT_K
 from curvefm.geometry import Mesh, farthest_point_sampling, load_mesh, shortest_path
 from curvefm.matching import MatchResult, match
 from curvefm.progress import Progress, no_progress
@@ -131,10 +131,10 @@ def evaluate_pair(
     target: str | Path,
     n_curves: int = 10,
     k: int = DEFAULT_K,
-    alpha: float = DEFAULT_ALPHA,
+    alpha: float | None = None,
     store: Store | None = None,
     progress: Progress = no_progress,
-    method: str = "curves",
+    method: str = "combined",
     method_params: dict | None = None,
 ) -> dict:
     """Match a pair with known ground truth using curves from that truth (``method``: any map method; the

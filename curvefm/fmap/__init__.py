@@ -1,6 +1,7 @@
 """Functional maps: curve restriction, the curve-constrained solver (column-separable exact solves), the
-paper's CG and an L-BFGS reference, the descriptor baselines' energies, function transfer through a map, and the
-maps' round-trip quality (no ground truth needed).
+paper's CG and an L-BFGS reference, the combined energy (curves, descriptors and landmark kernels), the
+descriptor baselines' energies, function transfer through a map, and the maps' round-trip quality (no ground
+truth needed).
 """
 
 from curvefm.fmap.baselines import (
@@ -21,6 +22,13 @@ from curvefm.fmap.column_solve import (
     solve_both,
     solve_columns,
 )
+from curvefm.fmap.combined import (
+    DEFAULT_COMBINED_ALPHA,
+    DEFAULT_DESCRIPTOR_WEIGHT,
+    DEFAULT_KERNEL_WEIGHT,
+    KERNEL_POINTS,
+    CombinedMapSolver,
+)
 from curvefm.fmap.maps import FunctionalMaps, Hints, curve_endpoints
 from curvefm.fmap.reference_solvers import conjugate_gradient_solve, quasi_newton_solve
 from curvefm.fmap.restriction import DEFAULT_SAMPLES, resample, restrict, restriction_operator
@@ -29,9 +37,13 @@ from curvefm.fmap.solver import DEFAULT_ALPHA, DEFAULT_K, CurveMapSolver, CurveT
 from curvefm.fmap.transfer import FunctionTransfer, transfer
 
 __all__ = [
+    "CombinedMapSolver",
     "CurveMapSolver",
     "CurveTerm",
     "DEFAULT_ALPHA",
+    "DEFAULT_COMBINED_ALPHA",
+    "DEFAULT_DESCRIPTOR_WEIGHT",
+    "DEFAULT_KERNEL_WEIGHT",
     "DEFAULT_K",
     "DEFAULT_SAMPLES",
     "DescriptorEnergy",
@@ -39,6 +51,7 @@ __all__ = [
     "FunctionTransfer",
     "FunctionalMaps",
     "Hints",
+    "KERNEL_POINTS",
     "PARALLEL_MIN_SIZE",
     "RIDGE",
     "RoundTrip",

@@ -207,9 +207,14 @@ class CurveMapSolver:
 
     def _products(self, term: CurveTerm) -> np.ndarray:
         """The curve's ``[PhiBar^T PhiBar, PsiBar^T PsiBar, PsiBar^T PhiBar] / s`` (3 x k x k)."""
+        phi, psi = self._restricted(term)
+        return np.stack([phi.T @ phi, psi.T @ psi, psi.T @ phi]) / self.samples
+
+    def _restricted(self, term: CurveTerm) -> tuple[np.ndarray, np.ndarray]:
+        """``(PhiBar, PsiBar)``: both bases at the curve's uniform samples (s x k each)."""
         phi = restrict(self.vertices_M, term.path_M, self.basis_M.evecs, self.samples)
         psi = restrict(self.vertices_N, term.path_N, self.basis_N.evecs, self.samples)
-        return np.stack([phi.T @ phi, psi.T @ psi, psi.T @ phi]) / self.samples
+        return phi, psi
 
     # -- solving ----------------------------------------------------------------------------------------
     def normal_equations(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from curvefm.errors import Conflict
-from curvefm.fmap import CurveMapSolver
+from curvefm.fmap import CombinedMapSolver, CurveMapSolver
 from curvefm.session.record import CurveRecord, SessionRecord
 from curvefm.spectral import Basis, ShapePair
 from curvefm.store import Store
@@ -68,11 +68,14 @@ def internal_paths(pair: ShapePair, curve: CurveRecord) -> tuple[np.ndarray, np.
     )
 
 
+SOLVERS: dict[str, type[CurveMapSolver]] = {"curves": CurveMapSolver, "combined": CombinedMapSolver}
+
+
 def build_solver(
     record: SessionRecord, pair: ShapePair, interactive: bool = False, executor: Executor | None = None
 ) -> CurveMapSolver:
-    """The session's solver with all its curves, under the same curve ids as in the record."""
-    solver = CurveMapSolver(
+    """The session's solver (of the record's energy) with all its curves, under the same curve ids as in the record."""
+    solver = SOLVERS[record.energy](
         pair.mesh_M.vertices,
         pair.basis_M,
         pair.mesh_N.vertices,

@@ -5,8 +5,8 @@ A record holds the shape pair, the parameters and every curve with its traced pa
 (:class:`curvefm.session.record_store.SessionStore`); the refinement job receives a copy of it, so both rebuild
 exactly the same ``CurveMapSolver``.
 
-The solver's parameters ``k``, ``alpha`` and ``samples`` are validated here, once, by the types below, which the
-request for a new session (:class:`SessionCreate`) and the record share.
+The solver's parameters ``k``, ``alpha``, ``samples`` and ``energy`` are validated here, once, by the types
+below, which the request for a new session (:class:`SessionCreate`) and the record share.
 """
 
 from __future__ import annotations
@@ -24,6 +24,11 @@ MapSize = Annotated[int, Field(ge=1, description="basis functions per shape: the
 Alpha = Annotated[float, Field(ge=0, allow_inf_nan=False, description="weight of Laplacian commutativity")]
 Samples = Annotated[int, Field(ge=2, le=10_000, description="samples per curve")]
 Sharing = Literal["private", "read", "edit"]
+Energy = Literal["combined", "curves"]
+ENERGY_DESCRIPTION = (
+    "the energy the maps minimise: combined (curves, wave kernel signatures and wave kernel maps along the curves, "
+    "Laplacian commutativity) or curves (the paper's curve constraints and Laplacian commutativity alone)"
+)
 SHARING_DESCRIPTION = (
     "who besides the owner (and admins) may use the session: private (nobody), read (every user may read it and "
     "refine from it), edit (every user may also change its curves); only the owner or an admin changes this"
@@ -62,6 +67,7 @@ class SessionCreate(BaseModel):
     alpha: Alpha = DEFAULT_ALPHA
     tracer: str = Field("geodesic", description="default tracer for curves that name none")
     samples: Samples = DEFAULT_SAMPLES
+    energy: Energy = Field("combined", description=ENERGY_DESCRIPTION)
     basis_plugin: str = "laplace-beltrami"
     basis_params: dict = Field(default_factory=dict)
     name: str = Field("", max_length=200)
@@ -90,6 +96,8 @@ class SessionRecord(BaseModel):
     k: MapSize
     alpha: Alpha
     samples: Samples
+    energy: Energy = Field("curves", description=ENERGY_DESCRIPTION + "; records written before energies existed "
+                           "have none and keep curves, so their maps do not change")
     tracer: str
     basis_plugin: str
     basis_params: dict

@@ -7,6 +7,7 @@ multiresolution basis for big meshes.
 from curvefm.spectral.basis import Basis, check_k, max_k
 from curvefm.spectral.descriptors import (
     curve_function,
+    energy_filters,
     multiplication_operators,
     normalised,
     wave_kernel_maps,
@@ -36,6 +37,7 @@ __all__ = [
     "block_lanczos",
     "check_k",
     "curve_function",
+    "energy_filters",
     "index_range",
     "log",
     "max_k",

@@ -38,6 +38,12 @@ def _energy_filters(evals: np.ndarray, n_energies: int, sigma: float, margin: fl
     return filters / filters.sum(axis=1, keepdims=True)
 
 
+def energy_filters(evals: np.ndarray, n_energies: int = 20, sigma: float = 0.06) -> np.ndarray:
+    """The wave kernels' band filters ``g_e(lam_k)`` (n_energies x k-1, the constant eigenfunction skipped): the
+    wave kernel map at p with energy e has the coefficients ``g_e(lam_k) phi_k(p)``."""
+    return _energy_filters(evals, n_energies, sigma)
+
+
 def wave_kernel_signature(
     basis: Basis, n_energies: int = 20, sigma: float = 0.06, *, margin: float = 0.0
 ) -> np.ndarray:

@@ -1,5 +1,6 @@
 """The paper's Figures 10/11: accuracy against the number of curves, exact vs traced curves, and the
-descriptor baselines given the same information (curve endpoints as landmarks, or curves as functions)."""
+descriptor baselines given the same information (curve endpoints as landmarks, or curves as functions), and the
+combined energy (curves, wave kernel signatures and kernel maps along the curves, the default)."""
 
 from __future__ import annotations
 
@@ -31,6 +32,7 @@ class Variant:
 VARIANTS = (
     Variant("curves-traced", "curves", "curves (ours), traced"),
     Variant("curves-exact", "curves", "curves (ours), exact", exact=True),
+    Variant("combined-traced", "combined", "combined (ours, the default), traced"),
     Variant("obcs12-wks", "obcs12", "OBCS12, descriptors alone (WKS)", params={"landmarks": False}),
     Variant("obcs12", "obcs12", "OBCS12, endpoints as landmarks"),
     Variant("no17", "no17", "NO17, endpoints as landmarks"),

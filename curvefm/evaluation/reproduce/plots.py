@@ -9,10 +9,10 @@ from curvefm.evaluation.metrics import CURVE_RADII
 from curvefm.evaluation.reproduce.accuracy import VARIANTS
 
 LABELS = {v.key: v.label for v in VARIANTS}
-STYLES = {"curves-traced": "-", "curves-exact": "--", "obcs12-wks": (0, (1, 3)), "obcs12": ":", "no17": "-.",
-          "no17-curves": (0, (5, 1, 1, 1))}  # fmt: skip
-COLOURS = {"curves-traced": "C0", "curves-exact": "C9", "obcs12-wks": "C7", "obcs12": "C3", "no17": "C1",
-           "no17-curves": "C2"}  # fmt: skip
+STYLES = {"curves-traced": "-", "curves-exact": "--", "combined-traced": "-", "obcs12-wks": (0, (1, 3)),
+          "obcs12": ":", "no17": "-.", "no17-curves": (0, (5, 1, 1, 1))}  # fmt: skip
+COLOURS = {"curves-traced": "C0", "curves-exact": "C9", "combined-traced": "C4", "obcs12-wks": "C7", "obcs12": "C3",
+           "no17": "C1", "no17-curves": "C2"}  # fmt: skip
 SOLVERS = {"ours": "ours (exact per column)", "cg": "conjugate gradients (paper, Alg. 2)",
            "quasi_newton": "quasi-Newton (L-BFGS)"}  # fmt: skip
 

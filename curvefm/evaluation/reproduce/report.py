@@ -26,7 +26,7 @@ def check_claims(accuracy: dict | None, timing: dict | None) -> list[dict]:
     if accuracy:
         s = accuracy["summary"]
         claims += [_one_curve(s, "obcs12-wks"), _one_curve(s, "obcs12"), _more_curves(s), _traced_vs_exact(s),
-                   _non_isometric(s), _baseline_test(s)]  # fmt: skip
+                   _non_isometric(s), _baseline_test(s), _default_wins(s)]  # fmt: skip
     if timing:
         claims.append(_interactive(timing))
     return claims
@@ -44,6 +44,34 @@ def _one_curve(s, baseline: str) -> dict:
     good = sum(ours < base for _, ours, base in rows)
     return {"claim": ONE_CURVE_CLAIMS[baseline], "verdict": _verdict(good, len(rows)),
             "evidence": "; ".join(f"{d}: {o:.3f} vs {b:.3f}" for d, o, b in rows)}  # fmt: skip
+
+
+SAME_INPUTS = ("combined-traced", "curves-traced", "obcs12", "no17")
+"""The methods given the same information (traced curves, or their endpoints as landmarks) that the winner is
+named among."""
+
+
+def winners(s) -> list[tuple[str, int, str, float]]:
+    """``(dataset, curve count, winning variant, its mean)`` among :data:`SAME_INPUTS`, for every count run."""
+    rows = []
+    for d in s:
+        for count in sorted({int(c) for v in SAME_INPUTS for c in s[d].get(v, {})}):
+            means = {v: m for v in SAME_INPUTS if (m := _mean(s, d, v, count)) is not None}
+            best = min(means, key=means.get)
+            rows.append((d, count, best, means[best]))
+    return rows
+
+
+def _default_wins(s) -> dict:
+    rows = []
+    for d in s:
+        for count in sorted(int(c) for c in s[d].get("combined-traced", {})):
+            others = [m for v in SAME_INPUTS[1:] if (m := _mean(s, d, v, count)) is not None]
+            rows.append((d, count, _mean(s, d, "combined-traced", count), min(others)))
+    good = sum(ours <= best for _, _, ours, best in rows)
+    return {"claim": "The default (combined) is at least as good as the best of curves, OBCS12 and NO17 (same "
+            "endpoints as landmarks)", "verdict": _verdict(good, len(rows)),
+            "evidence": "; ".join(f"{d} {c}: {o:.3f} vs {b:.3f}" for d, c, o, b in rows)}  # fmt: skip
 
 
 def _more_curves(s) -> dict:
@@ -150,6 +178,7 @@ def write_report(path: Path, results: dict, figures: dict[str, Path]) -> Path:
     lines += [f"| {c['claim']} | **{c['verdict']}** | {c['evidence']} |" for c in results["claims"]]
     accuracy = results.get("accuracy")
     if accuracy:
+        lines += _winners_section(accuracy["summary"])
         lines += ["", "## Accuracy against the number of curves (Figures 10/11)", ""]
         for dataset, summary in accuracy["summary"].items():
             lines += [f"### {DATASETS.get(dataset, dataset)}", "", f"![{dataset}]({image(figures[dataset])})", ""]
@@ -176,6 +205,16 @@ def _table(summary: dict) -> list[str]:
                  else "" for c in counts]  # fmt: skip
         lines.append(f"| {labels.get(key, key)} | " + " | ".join(cells) + " |")
     lines += ["", "Cells: mean error by geodesic diameter / by sqrt(area), averaged over pairs and seeds.", ""]
+    return lines
+
+
+def _winners_section(summary: dict) -> list[str]:
+    labels = {v.key: v.label for v in VARIANTS}
+    lines = ["", "## Which method wins", "",
+             "Lowest mean error (by geodesic diameter) among the methods given the same information: " +
+             ", ".join(labels[v] for v in SAME_INPUTS) + ".", "",
+             "| dataset | curves | winner | mean error |", "|---|---|---|---|"]  # fmt: skip
+    lines += [f"| {DATASETS.get(d, d)} | {c} | {labels[v]} | {m:.3f} |" for d, c, v, m in winners(summary)]
     return lines
 
 

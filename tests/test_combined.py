@@ -1,0 +1,171 @@
+"""The combined energy (curves, wave kernel signatures, wave kernel maps along the curves): its solver against an
+independent dense least-squares solve, incremental edits against a fresh solve, sessions that keep their energy,
+and its accuracy on a real pair with ground truth."""
+
+import numpy as np
+import pytest
+from shapes import basis_of, ellipsoid
+
+from curvefm import registry
+from curvefm.evaluation import ground_truth_curves, ground_truth_for, score
+from curvefm.fmap import CombinedMapSolver, CurveMapSolver, restrict
+from curvefm.fmap.combined import kernel_coefficients, signature_coefficients
+from curvefm.geometry import load_mesh, shortest_path
+from curvefm.matching import match
+from curvefm.session import (
+    CurveSpec,
+    LiveSessions,
+    SessionCreate,
+    SessionEditor,
+    SessionRecord,
+    SessionStore,
+    build_solver,
+    load_pair,
+)
+from curvefm.store import Store
+
+K = 12
+ENDPOINTS = [(0, 600), (100, 900), (250, 1100), (40, 700)]
+WEIGHTS = {"alpha": 3.0, "descriptor_weight": 5.0, "kernel_weight": 20.0}
+
+
+@pytest.fixture(scope="module")
+def shapes():
+    M, N = ellipsoid(), ellipsoid(radii=(1.1, 0.6, 0.55))
+    return M, basis_of(M, K), N, basis_of(N, K)
+
+
+@pytest.fixture(scope="module")
+def paths(shapes):
+    M, _, N, _ = shapes
+    return [(shortest_path(M.edge_graph, a, b), shortest_path(N.edge_graph, a, b)) for a, b in ENDPOINTS]
+
+
+def solver_on(shapes, **params):
+    M, bM, N, bN = shapes
+    return CombinedMapSolver(M.vertices, bM, N.vertices, bN, k=K, **(WEIGHTS | params))
+
+
+def dense_least_squares(shapes, curves, alpha, descriptor_weight, kernel_weight, samples=100):
+    """C_MN minimising the combined energy, from its terms written as one k^2-column least-squares system
+    (``vec(A C B) = (B^T kron A) vec(C)``, columns stacked): no normal equations, no column solves."""
+    M, bM, N, bN = shapes
+    scale = max(bM.evals[-1], bN.evals[-1])
+    lam_M, lam_N = bM.evals / scale, bN.evals / scale
+    eye = np.eye(K)
+    blocks = [(np.sqrt(alpha) * (np.kron(np.diag(lam_M), eye) - np.kron(eye, np.diag(lam_N))), np.zeros(K * K))]
+
+    def rows(F_N, F_M, weight):  # weight * ||F_N C - F_M||^2
+        return np.sqrt(weight) * np.kron(eye, F_N), np.sqrt(weight) * F_M.ravel(order="F")
+
+    S_M, S_N = signature_coefficients(bM), signature_coefficients(bN)
+    blocks.append(rows(S_N.T, S_M.T, descriptor_weight / S_M.shape[1]))
+    for path_M, path_N, weight in curves:
+        share = weight / sum(c[2] for c in curves)
+        phi = restrict(M.vertices, path_M, bM.evecs, samples)
+        psi = restrict(N.vertices, path_N, bN.evecs, samples)
+        blocks.append(rows(psi, phi, share / samples))
+        K_M, K_N = kernel_coefficients(phi, bM.evals), kernel_coefficients(psi, bN.evals)
+        blocks.append(rows(K_N.T, K_M.T, kernel_weight * share / K_M.shape[1]))
+    A = np.vstack([a for a, _ in blocks])
+    b = np.concatenate([b for _, b in blocks])
+    return np.linalg.lstsq(A, b, rcond=None)[0].reshape(K, K, order="F")
+
+
+def test_the_solver_minimises_the_combined_energy(shapes, paths):
+    curves = [(pm, pn, w) for (pm, pn), w in zip(paths[:3], (1.0, 2.0, 0.5), strict=True)]
+    with solver_on(shapes) as solver:
+        solver.add_curves(curves)
+        expected = dense_least_squares(shapes, curves, **WEIGHTS)
+        assert np.allclose(solver.C_MN, expected, atol=1e-7 * np.abs(expected).max())
+        assert solver.energy(solver.C_MN) < solver.energy(solver.C_MN + 1e-3 * np.eye(K))
+
+
+def test_incremental_edits_equal_a_fresh_solve(shapes, paths):
+    with solver_on(shapes) as edited, solver_on(shapes) as fresh:
+        ids = edited.add_curves([(pm, pn, 1.0) for pm, pn in paths[:3]])
+        edited.remove_curve(ids[1])
+        edited.replace_curve(ids[0], *paths[3], weight=2.0)
+        fresh.add_curves([(*paths[3], 2.0), (*paths[2], 1.0)])
+        for mine, theirs in ((edited.C_MN, fresh.C_MN), (edited.C_NM, fresh.C_NM)):
+            assert np.abs(mine).max() > 0
+            assert np.allclose(mine, theirs, rtol=0, atol=1e-9 * np.abs(theirs).max())
+
+
+def test_the_descriptor_terms_change_the_map(shapes, paths):
+    M, bM, N, bN = shapes
+    with solver_on(shapes) as combined, CurveMapSolver(M.vertices, bM, N.vertices, bN, k=K, alpha=3.0) as curves:
+        for solver in (combined, curves):
+            solver.add_curves([(pm, pn, 1.0) for pm, pn in paths[:2]])
+        assert not np.allclose(combined.C_MN, curves.C_MN, atol=1e-3)
+
+
+def test_signatures_are_computed_once_per_basis(shapes):
+    _, bM, _, _ = shapes
+    assert signature_coefficients(bM) is signature_coefficients(bM)
+
+
+@pytest.fixture(scope="module")
+def faust(shared_data, tmp_path_factory):
+    source, target = shared_data / "faust/tr_reg_000.off", shared_data / "faust/tr_reg_011.off"
+    M, N = load_mesh(source), load_mesh(target)
+    return M, N, ground_truth_for(source, target, M, N), Store(tmp_path_factory.mktemp("store"))
+
+
+def test_with_two_curves_the_combined_default_beats_the_curve_energy_clearly(faust):
+    # the issue's protocol: 2n farthest points among ground-truth vertices, consecutive pairs joined,
+    # nearest-neighbour conversion, mean geodesic error / sqrt(area)
+    M, N, truth, store = faust
+    curves = ground_truth_curves(M, N, truth, 2)
+    errors = {method: score(match(M, N, curves, store=store, method=method), truth)["source_to_target"]["mean_area"]
+              for method in ("combined", "curves")}  # fmt: skip
+    assert errors["combined"] <= 0.85 * errors["curves"], errors
+
+
+@pytest.fixture
+def sessions(tmp_path, shapes):
+    store = Store(tmp_path / "data")
+    params = registry.get("basis", "laplace-beltrami").parse_params({}).model_dump()
+    M, bM, N, bN = shapes
+    ids = [store.put_mesh(mesh) for mesh in (M, N)]
+    for mesh_id, basis in zip(ids, (bM, bN), strict=True):
+        store.put_basis(mesh_id, basis, "laplace-beltrami", params)
+    return store, ids
+
+
+def editor_on(store):
+    records = SessionStore(store.root)
+    return SessionEditor(records, LiveSessions(store, records))
+
+
+def test_sessions_keep_their_energy_across_a_reload(sessions):
+    store, (source, target) = sessions
+    editor = editor_on(store)
+    created = {energy: editor.create(SessionCreate(source=source, target=target, k=K, **energy_field))
+               for energy, energy_field in (("combined", {}), ("curves", {"energy": "curves"}))}  # fmt: skip
+    assert {energy: record.energy for energy, record in created.items()} == {"combined": "combined", "curves": "curves"}
+    spec = CurveSpec(source=list(ENDPOINTS[0]), target=list(ENDPOINTS[0]))
+    maps = {}
+    for energy, record in created.items():
+        editor.add_curve(record.id, spec)
+        maps[energy] = editor.maps(record.id)[0]
+    reloaded = editor_on(store)  # another process: records from disk, solvers rebuilt
+    for energy, record in created.items():
+        C_MN, _, stored = reloaded.maps(record.id)
+        assert stored.energy == energy
+        assert np.allclose(C_MN, maps[energy], rtol=0, atol=1e-12)
+    assert not np.allclose(maps["combined"], maps["curves"], atol=1e-3)
+
+
+def test_a_record_written_before_energies_existed_keeps_the_curve_energy(sessions):
+    store, (source, target) = sessions
+    records = SessionStore(store.root)
+    old = SessionRecord(id="old", source=source, target=target, k=K, alpha=100.0, samples=100, tracer="geodesic",
+                        basis_plugin="laplace-beltrami", basis_params={}, created_at=0.0, updated_at=0.0)
+    on_disk = old.model_dump(mode="json")
+    on_disk.pop("energy")
+    assert SessionRecord.model_validate(on_disk).energy == "curves"
+    records.create(SessionRecord.model_validate(on_disk))
+    pair = load_pair(store, records.read("old"))
+    with build_solver(records.read("old"), pair) as solver:
+        assert type(solver) is CurveMapSolver
