@@ -168,4 +168,5 @@ def serve_main(host: str = LOOPBACK_NAMES[1], port: int = 8000, log_level: str =
         log_level=log_level,
         log_config=log_config(log_level),
         timeout_keep_alive=settings.keep_alive_s,
+        http="h11",  # httptools answers malformed requests with plain text, not with a JSON error body
     )

@@ -38,7 +38,13 @@ BEARER = HTTPBearer(auto_error=False, description="a token from 'curvefm users a
 """For the OpenAPI schema (the Authorize button of /docs); :func:`current_user` reads the header itself."""
 
 
-def current_user(request: Request) -> User:
+async def current_user(request: Request) -> User:
+    """The dependency: :func:`request_user`, run on the event loop (a ``stat`` and a hash; a plain function
+    dependency would cost a hand-off to a worker thread on every request)."""
+    return request_user(request)
+
+
+def request_user(request: Request) -> User:
     """The user behind the request's credentials; :class:`Unauthenticated` (401) without valid ones,
     :class:`Forbidden` (403) for a cookie-authenticated write from another origin."""
     user = getattr(request.state, "user", None)
@@ -63,7 +69,7 @@ class CredentialsFirst:
         if scope["type"] == "http" and scope["method"] not in SAFE_METHODS:
             request = Request(scope)
             try:
-                current_user(request)  # remembered in the request's state for the route
+                request_user(request)  # remembered in the request's state for the route
             except CurvefmError as exc:
                 refusal = error_response(exc) if status_of(exc) < 500 else internal_error_response(request, exc)
                 await refusal(scope, receive, send)

@@ -69,7 +69,8 @@ def start_services(settings: Settings) -> Services:
     return services
 
 
-def get_services(request: Request) -> Services:
+async def get_services(request: Request) -> Services:
+    # async: FastAPI runs a plain function dependency in a worker thread, a hand-off per dependency per request
     return request.app.state.services
 
 

@@ -8,6 +8,9 @@ two fields, such as ZoomOut's ``k_final >= k_init``, are the one thing a JSON sc
 
 JSON bodies are validated against that published schema before pydantic parses them (:class:`SchemaRoute`):
 pydantic's lax mode would take ``"2"`` for a number or ``0`` for a boolean, which the schema rejects.
+A body is checked by ``jsonschema_rs`` first (compiled, about 200x faster than ``jsonschema``: the check was 8% of
+a curve edit's time under load); only a body it rejects goes to ``jsonschema``, the reference, whose errors
+:func:`_explain` turns into the message.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ from collections.abc import Callable, Coroutine
 from dataclasses import dataclass
 from typing import Any
 
+import jsonschema_rs
 from fastapi import FastAPI, Request, Response
 from fastapi.exceptions import RequestValidationError
 from fastapi.openapi.utils import get_openapi
@@ -52,9 +56,7 @@ def install_openapi(app: FastAPI) -> None:
 
     def openapi() -> dict:
         if app.openapi_schema is None:
-            schema = get_openapi(
-                title=app.title, version=app.version, description=app.description, routes=app.routes
-            )
+            schema = get_openapi(title=app.title, version=app.version, description=app.description, routes=app.routes)
             app.openapi_schema = with_plugins(schema)
         return app.openapi_schema
 
@@ -130,13 +132,35 @@ class SchemaRoute(APIRoute):
             if request.headers.get("content-type", "").startswith("application/json"):
                 validator = body_validator(request.app, self.path_format, request.method)
                 if validator is not None:
-                    _check_body(validator, await request.body())
+                    validator.check(await request.body())
             return await handler(request)
 
         return validated
 
 
-def body_validator(app: FastAPI, path: str, method: str) -> Draft202012Validator | None:
+@dataclass(frozen=True)
+class BodyValidator:
+    """One operation's body schema, compiled twice: ``fast`` accepts, ``reference`` explains (module doc)."""
+
+    fast: jsonschema_rs.Draft202012Validator
+    reference: Draft202012Validator
+
+    def check(self, body: bytes) -> None:
+        """Raise FastAPI's :class:`RequestValidationError` naming the first problem if ``body`` (JSON) does not
+        match the schema; malformed JSON is left to FastAPI."""
+        try:
+            instance = json.loads(body)
+        except ValueError:
+            return
+        if self.fast.is_valid(instance):
+            return
+        error = next(self.reference.iter_errors(instance), None)
+        if error is not None:
+            path, message = _explain(error)
+            raise RequestValidationError([{"loc": ("body", *path), "msg": message, "type": "schema"}])
+
+
+def body_validator(app: FastAPI, path: str, method: str) -> BodyValidator | None:
     """The validator of an operation's JSON body (``None``: it takes none), compiled on first use."""
     validators = app.state.body_validators
     key = (path, method.lower())
@@ -145,19 +169,11 @@ def body_validator(app: FastAPI, path: str, method: str) -> Draft202012Validator
         operation = document["paths"].get(path, {}).get(key[1], {})
         schema = operation.get("requestBody", {}).get("content", {}).get("application/json", {}).get("schema")
         # the components ride along in the root so that "#/components/..." references resolve
-        validators[key] = schema and Draft202012Validator({**schema, "components": document["components"]})
+        root = schema and {**schema, "components": document["components"]}
+        validators[key] = root and BodyValidator(
+            jsonschema_rs.Draft202012Validator(root, validate_formats=False), Draft202012Validator(root)
+        )
     return validators[key]
-
-
-def _check_body(validator: Draft202012Validator, body: bytes) -> None:
-    try:
-        instance = json.loads(body)
-    except ValueError:
-        return  # FastAPI answers malformed JSON itself
-    error = next(validator.iter_errors(instance), None)
-    if error is not None:
-        path, message = _explain(error)
-        raise RequestValidationError([{"loc": ("body", *path), "msg": message, "type": "schema"}])
 
 
 def _explain(error: ValidationError) -> tuple[list, str]:

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Annotated, Literal
 
 from fastapi import APIRouter, Query, Response
+from starlette.concurrency import run_in_threadpool
 
 from curvefm.errors import Conflict, CurvefmError
 from curvefm.geometry import save_textured_zip
@@ -95,16 +96,21 @@ def delete_session(session_id: str, services: ServicesDep, user: CurrentUser) ->
     return Response(status_code=204)
 
 
+# The curve edits are the hot path: async routes doing their blocking work (locks, tracing, the durable write) in
+# one trip to the thread pool; a plain route would take a second trip to validate its response.
 @router.post("/sessions/{session_id}/curves", status_code=201, response_model=CurveEdit, responses=ERRORS)
-def add_curve(
+async def add_curve(
     session_id: str,
     body: CurveSpec,
     services: ServicesDep,
     user: CurrentUser,
     curve_id: Annotated[
         str | None,
-        Query(pattern=r"^c[1-9][0-9]{0,8}$", description="undoing a delete: the deleted curve's id (409 if the "
-              "session never handed it out or a curve holds it); by default the next id"),
+        Query(
+            pattern=r"^c[1-9][0-9]{0,8}$",
+            description="undoing a delete: the deleted curve's id (409 if the "
+            "session never handed it out or a curve holds it); by default the next id",
+        ),
     ] = None,
     position: Annotated[
         int | None,
@@ -113,24 +119,34 @@ def add_curve(
 ) -> CurveEdit:
     """Trace a curve pair (waypoints joined by the tracer, or ``explicit`` vertex paths; file ids), update
     both maps, store the session, then answer with the traced paths and the new map summary."""
-    session_for(services, user, session_id, "edit")
-    curve, summary = services.sessions.add_curve(session_id, body, curve_id, position)
-    return CurveEdit(curve=curve, map=summary)
+
+    def edit() -> CurveEdit:
+        session_for(services, user, session_id, "edit")
+        curve, summary = services.sessions.add_curve(session_id, body, curve_id, position)
+        return CurveEdit(curve=curve, map=summary)
+
+    return await run_in_threadpool(edit)
 
 
 @router.put("/sessions/{session_id}/curves/{curve_id}", response_model=CurveEdit, responses=ERRORS)
-def replace_curve(
+async def replace_curve(
     session_id: str, curve_id: str, body: CurveSpec, services: ServicesDep, user: CurrentUser
 ) -> CurveEdit:
-    session_for(services, user, session_id, "edit")
-    curve, summary = services.sessions.replace_curve(session_id, curve_id, body)
-    return CurveEdit(curve=curve, map=summary)
+    def edit() -> CurveEdit:
+        session_for(services, user, session_id, "edit")
+        curve, summary = services.sessions.replace_curve(session_id, curve_id, body)
+        return CurveEdit(curve=curve, map=summary)
+
+    return await run_in_threadpool(edit)
 
 
 @router.delete("/sessions/{session_id}/curves/{curve_id}", response_model=CurveEdit, responses=ERRORS)
-def remove_curve(session_id: str, curve_id: str, services: ServicesDep, user: CurrentUser) -> CurveEdit:
-    session_for(services, user, session_id, "edit")
-    return CurveEdit(map=services.sessions.remove_curve(session_id, curve_id))
+async def remove_curve(session_id: str, curve_id: str, services: ServicesDep, user: CurrentUser) -> CurveEdit:
+    def edit() -> CurveEdit:
+        session_for(services, user, session_id, "edit")
+        return CurveEdit(map=services.sessions.remove_curve(session_id, curve_id))
+
+    return await run_in_threadpool(edit)
 
 
 @router.get("/sessions/{session_id}/map", response_model=MapResponse, responses=ERRORS)
@@ -155,8 +171,10 @@ FILE_IDS = r"^[0-9]{1,10}(,[0-9]{1,10})*$"  # ten digits at most: no id beyond i
 TRANSFER_HEADERS = {
     "X-Shape": {"description": "n,d: rows (target vertices) and values per row", "schema": {"type": "string"}},
     "X-Revision": {"description": "the session revision the map had", "schema": {"type": "string"}},
-    "X-Solve-Ms": {"description": "milliseconds this request spent solving the map (0: already solved)",
-                   "schema": {"type": "string"}},
+    "X-Solve-Ms": {
+        "description": "milliseconds this request spent solving the map (0: already solved)",
+        "schema": {"type": "string"},
+    },
 }
 
 
@@ -179,8 +197,11 @@ def get_transfer(
     ``vertices``, 0 elsewhere."""
     session_for(services, user, session_id, "read")
     values, revision, solve_ms = services.sessions.transfer(session_id, function, _parse_ids(vertices))
-    headers = {"X-Shape": f"{values.shape[0]},{values.shape[1]}", "X-Revision": str(revision),
-               "X-Solve-Ms": f"{solve_ms:.3f}"}
+    headers = {
+        "X-Shape": f"{values.shape[0]},{values.shape[1]}",
+        "X-Revision": str(revision),
+        "X-Solve-Ms": f"{solve_ms:.3f}",
+    }
     return Response(values.astype("<f4").tobytes(), media_type="application/octet-stream", headers=headers)
 
 
@@ -193,8 +214,10 @@ QUALITY_HEADERS = {
         "schema": {"type": "string"},
     },
     **{
-        f"X-Worst-{role.title()}": {"description": f"file id of the {role} vertex that drifts furthest",
-                                     "schema": {"type": "string"}}
+        f"X-Worst-{role.title()}": {
+            "description": f"file id of the {role} vertex that drifts furthest",
+            "schema": {"type": "string"},
+        }
         for role in ("target", "source")
     },
 }
@@ -228,8 +251,10 @@ ExportName = Literal["maps.mat", "target_textured.zip"]
     "/sessions/{session_id}/exports/{export}",
     response_class=Response,
     responses={
-        200: {"content": {media: {"schema": {"type": "string", "format": "binary"}} for media in EXPORT_TYPES.values()},
-              "headers": {"X-Revision": TRANSFER_HEADERS["X-Revision"]}},
+        200: {
+            "content": {media: {"schema": {"type": "string", "format": "binary"}} for media in EXPORT_TYPES.values()},
+            "headers": {"X-Revision": TRANSFER_HEADERS["X-Revision"]},
+        },
         **ERRORS,
     },
 )

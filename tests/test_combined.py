@@ -9,7 +9,7 @@ from shapes import basis_of, ellipsoid
 from curvefm import registry
 from curvefm.evaluation import ground_truth_curves, ground_truth_for, score
 from curvefm.fmap import CombinedMapSolver, CurveMapSolver, restrict
-from curvefm.fmap.combined import kernel_coefficients, signature_coefficients
+from curvefm.fmap.combined import kernel_coefficients, kernel_filters, signature_coefficients
 from curvefm.geometry import load_mesh, shortest_path
 from curvefm.matching import match
 from curvefm.session import (
@@ -65,7 +65,8 @@ def dense_least_squares(shapes, curves, alpha, descriptor_weight, kernel_weight,
         phi = restrict(M.vertices, path_M, bM.evecs, samples)
         psi = restrict(N.vertices, path_N, bN.evecs, samples)
         blocks.append(rows(psi, phi, share / samples))
-        K_M, K_N = kernel_coefficients(phi, bM.evals), kernel_coefficients(psi, bN.evals)
+        K_M = kernel_coefficients(phi, kernel_filters(bM.evals))
+        K_N = kernel_coefficients(psi, kernel_filters(bN.evals))
         blocks.append(rows(K_N.T, K_M.T, kernel_weight * share / K_M.shape[1]))
     A = np.vstack([a for a, _ in blocks])
     b = np.concatenate([b for _, b in blocks])
@@ -160,8 +161,19 @@ def test_sessions_keep_their_energy_across_a_reload(sessions):
 def test_a_record_written_before_energies_existed_keeps_the_curve_energy(sessions):
     store, (source, target) = sessions
     records = SessionStore(store.root)
-    old = SessionRecord(id="old", source=source, target=target, k=K, alpha=100.0, samples=100, tracer="geodesic",
-                        basis_plugin="laplace-beltrami", basis_params={}, created_at=0.0, updated_at=0.0)
+    old = SessionRecord(
+        id="old",
+        source=source,
+        target=target,
+        k=K,
+        alpha=100.0,
+        samples=100,
+        tracer="geodesic",
+        basis_plugin="laplace-beltrami",
+        basis_params={},
+        created_at=0.0,
+        updated_at=0.0,
+    )
     on_disk = old.model_dump(mode="json")
     on_disk.pop("energy")
     assert SessionRecord.model_validate(on_disk).energy == "curves"

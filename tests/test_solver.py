@@ -269,3 +269,16 @@ def test_a_heavy_curve_removed_again_leaves_no_rounding_and_a_failed_solve_chang
     np.testing.assert_array_equal(solver.C_MN, before)
     solver.add_curve(paths[0], paths[1])  # and the solver still works
     assert not np.allclose(solver.C_MN, before)
+
+
+def test_restriction_samples_functions_by_the_sparse_operator(pair):
+    """``restrict`` (row gathers) is ``P_gamma @ evecs`` with the barycentric operator, and samples a linear
+    function of the coordinates exactly: its first and last samples are the path's endpoints."""
+    from curvefm.fmap import resample, restrict, restriction_operator
+
+    M, bM, _, _ = pair
+    path = curves_on(M, ENDPOINTS[:1])[0]
+    operator = restriction_operator(M.n_vertices, *resample(M.vertices, path, 50))
+    np.testing.assert_allclose(restrict(M.vertices, path, bM.evecs, 50), operator @ bM.evecs, atol=1e-12)
+    positions = restrict(M.vertices, path, M.vertices, 50)
+    np.testing.assert_allclose(positions[[0, -1]], M.vertices[[path[0], path[-1]]], atol=1e-12)

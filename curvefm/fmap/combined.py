@@ -64,14 +64,19 @@ def signature_coefficients(basis: Basis) -> np.ndarray:
     return _SIGNATURES.get(key, lambda: basis.project(normalised(basis, wave_kernel_signature(basis, ENERGIES, SIGMA))))
 
 
-def kernel_coefficients(restricted: np.ndarray, evals: np.ndarray, points: int = KERNEL_POINTS) -> np.ndarray:
+def kernel_filters(evals: np.ndarray) -> np.ndarray:
+    """The wave kernels' filters (ENERGIES x k - 1, the constant function skipped) for a basis's eigenvalues
+    (unit-area mesh, not normalised: the filters are on log-eigenvalues)."""
+    return energy_filters(evals, ENERGIES, SIGMA)
+
+
+def kernel_coefficients(restricted: np.ndarray, filters: np.ndarray, points: int = KERNEL_POINTS) -> np.ndarray:
     """Unit-norm coefficients (k x points * ENERGIES) of the wave kernel maps at ``points`` samples of a curve.
 
-    ``restricted`` (s x k) is the basis at the curve's s samples (a curve term's ``PhiBar``), ``evals`` the
-    basis's eigenvalues (unit-area mesh, not normalised: the filters are on log-eigenvalues).
+    ``restricted`` (s x k) is the basis at the curve's s samples (a curve term's ``PhiBar``), ``filters`` the
+    basis's :func:`kernel_filters`.
     """
     s, k = restricted.shape
-    filters = energy_filters(evals, ENERGIES, SIGMA)  # (E, k - 1), the constant function skipped
     rows = np.unique(np.linspace(0, s - 1, points).round().astype(int))
     kernels = np.zeros((len(rows), ENERGIES, k))
     kernels[:, :, 1:] = restricted[rows, None, 1:] * filters[None]
@@ -101,14 +106,19 @@ class CombinedMapSolver(CurveMapSolver):
         self.descriptor_weight, self.kernel_weight = float(descriptor_weight), float(kernel_weight)
         self.kernel_points = kernel_points
         self._signatures = self.descriptor_weight * signature_products(self.basis_M, self.basis_N)
+        self._filters_M, self._filters_N = kernel_filters(self.basis_M.evals), kernel_filters(self.basis_N.evals)
 
-    def _products(self, term: CurveTerm) -> np.ndarray:
+    def _factors(self, term: CurveTerm) -> tuple[np.ndarray, np.ndarray]:
+        """The curve's factors with its kernels' rows below: ``[PhiBar / sqrt(s); sqrt(w / p) K_M^T]`` (and the
+        same on N), so that the products sum the curve and kernel terms in one matrix product each."""
         phi, psi = self._restricted(term)
-        K_M = kernel_coefficients(phi, self.basis_M.evals, self.kernel_points)
-        K_N = kernel_coefficients(psi, self.basis_N.evals, self.kernel_points)
-        curve = np.stack([phi.T @ phi, psi.T @ psi, psi.T @ phi]) / self.samples
-        kernels = np.stack([K_M @ K_M.T, K_N @ K_N.T, K_N @ K_M.T]) / K_M.shape[1]
-        return curve + self.kernel_weight * kernels
+        K_M = kernel_coefficients(phi, self._filters_M, self.kernel_points)
+        K_N = kernel_coefficients(psi, self._filters_N, self.kernel_points)
+        curve_scale, kernel_scale = 1.0 / np.sqrt(self.samples), np.sqrt(self.kernel_weight / K_M.shape[1])
+        return (
+            np.vstack([phi * curve_scale, K_M.T * kernel_scale]),
+            np.vstack([psi * curve_scale, K_N.T * kernel_scale]),
+        )
 
     def normal_equations(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         G_M, G_N, B = super().normal_equations()

@@ -33,12 +33,14 @@ def resample(vertices: np.ndarray, path: np.ndarray, samples: int = DEFAULT_SAMP
 def restriction_operator(n_vertices: int, a: np.ndarray, b: np.ndarray, t: np.ndarray) -> sp.csr_matrix:
     """Sparse ``s x n`` matrix with barycentric weights: ``P @ f`` samples ``f`` along the curve."""
     rows = np.arange(len(a))
-    return sp.csr_matrix(
-        (np.r_[1.0 - t, t], (np.r_[rows, rows], np.r_[a, b])), shape=(len(a), n_vertices)
-    )
+    return sp.csr_matrix((np.r_[1.0 - t, t], (np.r_[rows, rows], np.r_[a, b])), shape=(len(a), n_vertices))
 
 
 def restrict(mesh_vertices: np.ndarray, path: np.ndarray, evecs: np.ndarray, samples: int) -> np.ndarray:
-    """``P_gamma @ evecs`` for a curve: the basis restricted to ``samples`` uniform points (s x k)."""
-    P = restriction_operator(len(evecs), *resample(mesh_vertices, path, samples))
-    return P @ evecs
+    """``P_gamma @ evecs`` for a curve: the basis restricted to ``samples`` uniform points (s x k).
+
+    Computed row by row from the two vertices of each sample, not by building ``P``: a curve edit restricts both
+    bases, and assembling the sparse matrix cost more than the product."""
+    a, b, t = resample(mesh_vertices, path, samples)
+    t = t[:, None]
+    return (1.0 - t) * evecs[a] + t * evecs[b]

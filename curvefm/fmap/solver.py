@@ -206,9 +206,19 @@ class CurveMapSolver:
         return CurveTerm(_compact(path_M, len(self.vertices_M)), _compact(path_N, len(self.vertices_N)), float(weight))
 
     def _products(self, term: CurveTerm) -> np.ndarray:
-        """The curve's ``[PhiBar^T PhiBar, PsiBar^T PsiBar, PsiBar^T PhiBar] / s`` (3 x k x k)."""
+        """The curve's ``[X^T X, Y^T Y, Y^T X]`` (3 x k x k) for its :meth:`_factors` ``(X, Y)``."""
+        X, Y = self._factors(term)
+        products = np.empty((3, self.k, self.k))
+        np.matmul(X.T, X, out=products[0])
+        np.matmul(Y.T, Y, out=products[1])
+        np.matmul(Y.T, X, out=products[2])
+        return products
+
+    def _factors(self, term: CurveTerm) -> tuple[np.ndarray, np.ndarray]:
+        """``(PhiBar, PsiBar) / sqrt(s)``: the curve terms are ``||PsiBar C - PhiBar||^2 / s``."""
         phi, psi = self._restricted(term)
-        return np.stack([phi.T @ phi, psi.T @ psi, psi.T @ phi]) / self.samples
+        scale = 1.0 / np.sqrt(self.samples)
+        return phi * scale, psi * scale
 
     def _restricted(self, term: CurveTerm) -> tuple[np.ndarray, np.ndarray]:
         """``(PhiBar, PsiBar)``: both bases at the curve's uniform samples (s x k each)."""

@@ -77,7 +77,7 @@ class SessionCreate(BaseModel):
 class CurveRecord(BaseModel):
     """One stored curve pair: the user's input and the traced paths (file vertex ids, start first)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", frozen=True)
     id: str
     spec: CurveSpec
     tracer: str = Field(description="tracer actually used (the session default when the spec names none)")
@@ -86,7 +86,8 @@ class CurveRecord(BaseModel):
 
 
 class SessionRecord(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    # frozen: a parsed record is shared by the requests that read the same stored bytes (SessionStore.read)
+    model_config = ConfigDict(extra="forbid", frozen=True)
     id: str
     name: str = ""
     owner: str = Field("", description="the user who created it (empty: made before users existed; admins only)")
@@ -96,8 +97,11 @@ class SessionRecord(BaseModel):
     k: MapSize
     alpha: Alpha
     samples: Samples
-    energy: Energy = Field("curves", description=ENERGY_DESCRIPTION + "; records written before energies existed "
-                           "have none and keep curves, so their maps do not change")
+    energy: Energy = Field(
+        "curves",
+        description=ENERGY_DESCRIPTION + "; records written before energies existed "
+        "have none and keep curves, so their maps do not change",
+    )
     tracer: str
     basis_plugin: str
     basis_params: dict

@@ -23,11 +23,14 @@ from pathlib import Path
 
 from pydantic import BaseModel
 
+from curvefm.cache import LRU
 from curvefm.errors import Conflict, InvalidInput, NotFound, Unavailable, shown
 from curvefm.session.record import SessionRecord
 from curvefm.store import atomic_write
 
 DEFAULT_LOCK_TIMEOUT_S = 30.0
+PARSED_RECORDS = 64
+"""Records kept parsed with the bytes they came from (a parse is most of a read; an edit reads its record 2-3 times)."""
 _SESSION_ID = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
 
 
@@ -60,12 +63,20 @@ class SessionStore:
     def __init__(self, data_dir: str | Path, lock_timeout_s: float = DEFAULT_LOCK_TIMEOUT_S):
         self.folder = Path(data_dir) / "sessions"
         self.lock_timeout_s = lock_timeout_s
+        self._parsed: LRU[tuple[bytes, SessionRecord]] = LRU(PARSED_RECORDS)
 
     def exists(self, session_id: str) -> bool:
         return well_formed(session_id) and self._path(session_id).is_file()
 
     def read(self, session_id: str) -> SessionRecord:
-        return SessionRecord.model_validate_json(self._bytes(session_id))
+        """The stored record, always read from disk; parsed again only when its bytes changed since the last read."""
+        data = self._bytes(session_id)
+        parsed = self._parsed.peek(session_id)
+        if parsed is not None and parsed[0] == data:
+            return parsed[1]
+        record = SessionRecord.model_validate_json(data)
+        self._parsed.put(session_id, (data, record))
+        return record
 
     def read_changed(self, session_id: str, revision: int) -> SessionRecord | None:
         """The stored record if its revision is not ``revision``, else ``None``: then only the revision is parsed
@@ -124,6 +135,7 @@ class SessionStore:
             raise UnknownSession(session_id)
         jobs = self.jobs(session_id)
         self._path(session_id).unlink()
+        self._parsed.pop(session_id)
         self._jobs_path(session_id).unlink(missing_ok=True)
         return jobs
 
