@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
@@ -161,6 +162,7 @@ def serve_main(host: str = LOOPBACK_NAMES[1], port: int = 8000, log_level: str =
         check_redis(settings.redis_url)  # a wrong password is one line (exit 2), not a traceback at startup
     print(login_instructions(UserStore(settings.data_dir), host, port), flush=True)
     app = create_app(settings)
+    sys.setswitchinterval(settings.gil_switch_ms / 1000)
     uvicorn.run(
         app,
         host=host,

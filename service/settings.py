@@ -67,6 +67,9 @@ class Settings:
     login_ttl_s: float = DEFAULT_LOGIN_TTL_S
     """How long a login cookie of the web page stays valid (a token rotation or removal ends it sooner)."""
     keep_alive_s: float = 75.0
+    gil_switch_ms: float = 1.0
+    """How long a thread may hold the interpreter lock while another waits for it (Python's default is 5 ms): the
+    event loop, which reads and answers every request, waits behind the threads doing edits at most this long."""
     """How long an idle HTTP connection stays open. Longer than the idle timeout of clients and proxies (httpx
     5 s, Caddy 2 min is the exception: set it above that behind one), so that they close idle connections
     first: when the server closes one just as a request goes out on it, that request fails (the 5 s uvicorn
@@ -118,6 +121,13 @@ def _non_negative(kind: Callable[[str], float | int]) -> Callable[[str], float |
     return parse
 
 
+def _positive_float(text: str) -> float:
+    value = float(text)
+    if not 0 < value < float("inf"):
+        raise ValueError(text)
+    return value
+
+
 def host_list(text: str) -> tuple[str, ...]:
     """``"a.example, B.example"`` -> ``("a.example", "b.example")``; ``*`` allows any host."""
     hosts = tuple(normal_host(part) for part in text.split(",") if part.strip())
@@ -147,6 +157,7 @@ ENV: dict[str, tuple[str, Callable[[str], object]]] = {
     "expiry_interval_s": ("CURVEFM_EXPIRY_INTERVAL", _non_negative(float)),
     "login_ttl_s": ("CURVEFM_LOGIN_TTL", _non_negative(float)),
     "keep_alive_s": ("CURVEFM_KEEP_ALIVE", _non_negative(float)),
+    "gil_switch_ms": ("CURVEFM_GIL_SWITCH_MS", _positive_float),
 }
 """Setting -> (environment variable, parser), for the settings that are not request limits (:data:`LIMITS`)."""
 

@@ -4,6 +4,7 @@ leaking, the admins' audit route, and expiry of jobs and their result files."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import time
@@ -290,3 +291,16 @@ def test_ended_jobs_and_their_result_files_expire(mode, processes, redis_url, re
         time.sleep(0.25)
     error_body(api.client.get(link), 404, "not_found")
     assert api.client.get(f"/sessions/{session}").status_code == 200  # sessions do not expire
+
+
+@pytest.mark.parametrize("value", ["0", "-1", "nan", "fast"])
+def test_a_server_refuses_an_invalid_interpreter_lock_switch_interval(tmp_path: Path, value: str):
+    """``CURVEFM_GIL_SWITCH_MS`` must be a positive number of milliseconds: anything else stops the server at start
+    with one line naming the variable (Python itself would refuse 0 with a traceback)."""
+    env = {**os.environ, "CURVEFM_GIL_SWITCH_MS": value}
+    started = subprocess.run(
+        [sys.executable, "-m", "curvefm.service", "--port", "0", "--data", str(tmp_path)],
+        env=env, capture_output=True, text=True, timeout=60,
+    )
+    assert started.returncode == 2, started.stderr
+    assert "CURVEFM_GIL_SWITCH_MS" in started.stderr and "Traceback" not in started.stderr
