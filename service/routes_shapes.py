@@ -3,6 +3,7 @@ every user sees; the uploaders (and admins) may delete them."""
 
 from __future__ import annotations
 
+import gzip
 import json
 import re
 import shutil
@@ -11,8 +12,9 @@ from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
-from fastapi import APIRouter, File, Form, Response, UploadFile
+from fastapi import APIRouter, File, Form, Request, Response, UploadFile
 
+from curvefm.cache import LRU
 from curvefm.errors import InvalidInput
 from curvefm.geometry import SUPPORTED_FORMATS, Mesh, load_mesh, texture_coordinates
 from curvefm.service.auth import AUTHENTICATED, CurrentUser
@@ -34,6 +36,9 @@ UPLOAD_ERRORS = error_responses(
 )
 COPY_CHUNK = 1 << 20
 MESH_FORMAT = "curvefm-mesh-1"
+GZIPPED_MESHES: LRU[bytes] = LRU(16)
+"""Binary mesh payloads gzipped once (level 1: about half the bytes, 27 ms for 28k vertices), by shape id: a
+shape's id is its content's hash, so an entry never goes stale."""
 
 
 @router.post(
@@ -85,7 +90,9 @@ def get_shape(shape_id: str, services: ServicesDep) -> ShapeInfo:
     "/shapes/{shape_id}/mesh",
     responses={200: {"content": {"application/octet-stream": {}, "application/json": {}}}, **ERRORS},
 )
-def get_shape_mesh(shape_id: str, services: ServicesDep, format: Literal["binary", "json"] = "binary") -> Response:
+def get_shape_mesh(
+    shape_id: str, request: Request, services: ServicesDep, format: Literal["binary", "json"] = "binary"
+) -> Response:
     """The mesh in internal vertex order, for drawing.
 
     ``binary`` (default): a little-endian uint32 ``H``, then ``H`` bytes of JSON header (space-padded to a
@@ -95,12 +102,18 @@ def get_shape_mesh(shape_id: str, services: ServicesDep, format: Literal["binary
     ``faces`` (f x 3, internal ids), ``file_ids`` (n: file id of each vertex), ``texcoords`` (n x 2: the
     texture coordinates the ``uv`` transfer carries, the file's own or generated cylindrical ones) and, if the
     file had them, ``uv`` (n x 2). ``json``: the same arrays as nested lists.
+
+    The binary form is sent gzipped (``Content-Encoding: gzip``, about half the bytes) to a client that accepts it.
     """
     mesh = services.live.mesh(shape_id)
     if format == "json":
         arrays = {name: array.tolist() for name, array in _mesh_arrays(mesh).items()}
         return Response(json.dumps({"format": MESH_FORMAT, "name": mesh.name, **arrays}), media_type="application/json")
-    return Response(encode_mesh(mesh), media_type="application/octet-stream")
+    if "gzip" not in request.headers.get("accept-encoding", ""):
+        return Response(encode_mesh(mesh), media_type="application/octet-stream", headers={"Vary": "Accept-Encoding"})
+    body = GZIPPED_MESHES.get(shape_id, lambda: gzip.compress(encode_mesh(mesh), compresslevel=1, mtime=0))
+    headers = {"Content-Encoding": "gzip", "Vary": "Accept-Encoding"}
+    return Response(body, media_type="application/octet-stream", headers=headers)
 
 
 @router.post(

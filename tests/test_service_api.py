@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gzip
 import http.client
 import json
 import struct
@@ -57,6 +58,18 @@ def test_shapes_are_listed_and_their_mesh_decodes(server):
     assert np.allclose(array("texcoords"), texture_coordinates(mesh), atol=1e-6)  # what the uv transfer carries
     as_json = server.client.get(f"/shapes/{server.shapes[0]}/mesh", params={"format": "json"}).json()
     assert np.array_equal(as_json["faces"], mesh.faces)
+
+
+def test_the_binary_mesh_is_gzipped_for_clients_that_accept_it(server):
+    """The same bytes either way; gzipped on the wire (about half) only when the client says it decodes gzip."""
+    url = f"/shapes/{server.shapes[0]}/mesh"
+    plain = server.client.get(url, headers={"Accept-Encoding": "identity"}).raise_for_status()
+    assert "content-encoding" not in plain.headers
+    with server.client.stream("GET", url, headers={"Accept-Encoding": "gzip"}) as zipped:
+        assert zipped.headers["content-encoding"] == "gzip" and zipped.headers["vary"] == "Accept-Encoding"
+        wire = b"".join(zipped.iter_raw())
+    assert len(wire) < 0.8 * len(plain.content)
+    assert gzip.decompress(wire) == plain.content
 
 
 def test_curve_edits_update_the_map_and_the_stored_session(server):
