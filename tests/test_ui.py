@@ -193,10 +193,12 @@ def test_undo_after_delete_brings_the_curve_back_with_its_id_colour_and_place(pa
 
 
 def test_refinement_results_come_back_after_a_reload_and_turn_stale_after_an_edit(page, demo):
+    revision = session(demo)["revision"]
     page.select_option("#converter-select", "nearest-neighbor")
     page.click("#refine-button")
-    page.wait_for_selector("#refine-progress .progress-row.ok", timeout=60_000)
-    revision = session(demo)["revision"]
+    # this job's row: an earlier test's refinement, restored when the page loaded, has an ok row too
+    page.wait_for_selector(f"#refine-progress .progress-row.ok:has-text('nearest-neighbor (revision {revision})')",
+                           timeout=60_000)
     page.reload()
     page.wait_for_function("() => window.curvefm && window.curvefm.ready", timeout=60_000)
     page.wait_for_selector('#downloads a[download="map_target_to_source.txt"]')
