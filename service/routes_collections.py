@@ -23,7 +23,7 @@ from curvefm.collection import (
     write_npz,
     write_zip,
 )
-from curvefm.errors import NotFound
+from curvefm.errors import InvalidInput, NotFound
 from curvefm.service.auth import AUTHENTICATED, CurrentUser
 from curvefm.service.deps import JOB_ERRORS, Services, ServicesDep, job_view, submit_basis, submit_refine
 from curvefm.service.errors import error_responses
@@ -48,7 +48,12 @@ router = APIRouter(
     tags=["collections"], route_class=SchemaRoute, dependencies=AUTHENTICATED, responses=error_responses(401, 403, 503)
 )
 ERRORS = error_responses(400, 404, 409, 413, 422)
-RUN_ERRORS = {**error_responses(400, 404, 409, 413, 422, 429), **JOB_ERRORS}
+RUN_ERRORS = {
+    **error_responses(
+        400, 404, 409, 413, 422, 429, described={400: "the converter's parameters contradict each other"}
+    ),
+    **JOB_ERRORS,
+}
 ARCHIVE_TYPES = {"npz": "application/x-npz", "zip": "application/zip"}
 
 
@@ -129,16 +134,21 @@ def add_members(collection_id: str, body: MembersRequest, services: ServicesDep,
     "/collections/{collection_id}/members/upload",
     status_code=201,
     response_model=CollectionView,
-    responses={**ERRORS, **JOB_ERRORS, 429: error_responses(429)[429]},
+    responses={
+        **error_responses(400, 404, 409, 413, 422, 429, described={400: "no file, or a file that is not a mesh"}),
+        **JOB_ERRORS,
+    },
 )
 def upload_members(
     collection_id: str,
-    files: Annotated[list[UploadFile], File(description="mesh files, one member each")],
     services: ServicesDep,
     user: CurrentUser,
+    files: Annotated[list[UploadFile], File(description="mesh files, one member each")] = (),
 ) -> CollectionView:
     """Upload several meshes at once (as ``POST /shapes`` each) and add them as members."""
     collection_for(services, user, collection_id, "edit")
+    if not files:  # a multipart body without parts: the schema cannot ask for at least one
+        raise InvalidInput("upload at least one mesh file (multipart field 'files')")
     shapes = [store_upload(services, user, file)[0] for file in files]
     services.collections.add_members(collection_id, shapes)
     _queue_bases(services, services.collections.record(collection_id), user)
