@@ -11,7 +11,14 @@ from starlette.exceptions import HTTPException
 
 from curvefm.access import UserStore
 from curvefm.errors import LimitExceeded
-from curvefm.service import routes_audit, routes_auth, routes_jobs, routes_sessions, routes_shapes
+from curvefm.service import (
+    routes_audit,
+    routes_auth,
+    routes_collections,
+    routes_jobs,
+    routes_sessions,
+    routes_shapes,
+)
 from curvefm.service.auth import LOCAL_ADMIN, CredentialsFirst
 from curvefm.service.deps import start_services
 from curvefm.service.docs import DOCS_PAGES, documentation_routes
@@ -122,7 +129,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.add_middleware(RateLimit, settings=settings, buckets=buckets, exempt=is_unlimited)
     app.add_middleware(HostCheck, allowed=settings.allowed_hosts)
     app.add_middleware(SecurityHeaders, csp=ui_csp(INDEX_HTML), docs_csp=docs_csp(DOCS_PAGES.values()))
-    for module in (routes_auth, routes_shapes, routes_sessions, routes_jobs, routes_audit):
+    for module in (routes_auth, routes_shapes, routes_sessions, routes_collections, routes_jobs, routes_audit):
         app.include_router(module.router)
     app.include_router(routes_jobs.public)
     app.include_router(documentation_routes())

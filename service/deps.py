@@ -10,13 +10,14 @@ from typing import Annotated
 from fastapi import Depends, Request
 
 from curvefm.access import AuditLog, Usage, UserStore, signing_key
+from curvefm.collection import CollectionEditor, CollectionStore, JobView
 from curvefm.service.errors import error_responses, require_plugin
 from curvefm.service.expiry import start_expiry
 from curvefm.service.login import LoginCookies
 from curvefm.service.models import JobInfoModel
 from curvefm.service.quotas import Quotas
 from curvefm.service.settings import Settings
-from curvefm.session import LiveSessions, SessionEditor, SessionStore
+from curvefm.session import LiveSessions, SessionEditor, SessionRecord, SessionStore
 from curvefm.store import Store, params_key
 from curvefm.workers.factory import make_queue
 from curvefm.workers.interface import JobInfo, JobQueue
@@ -37,6 +38,7 @@ class Services:
     audit: AuditLog
     quotas: Quotas
     logins: LoginCookies
+    collections: CollectionEditor
     stop_events: list[threading.Event] = field(default_factory=list)
 
     def close(self) -> None:
@@ -63,7 +65,8 @@ def start_services(settings: Settings) -> Services:
     quotas = Quotas(settings, Usage(store.root), store, records, queue)
     users, audit = UserStore(store.root), AuditLog(store.root)
     logins = LoginCookies(signing_key(store.root), users, settings.login_ttl_s)
-    services = Services(settings, store, queue, records, live, sessions, users, audit, quotas, logins)
+    collections = CollectionEditor(CollectionStore(store.root, settings.session_lock_timeout_s), sessions)
+    services = Services(settings, store, queue, records, live, sessions, users, audit, quotas, logins, collections)
     expiry = start_expiry(queue, store.root / "results", settings.job_ttl_s, settings.expiry_interval_s)
     services.stop_events.append(expiry)
     return services
@@ -99,6 +102,26 @@ def job_links(info: JobInfo) -> dict[str, str]:
 
 def job_model(info: JobInfo) -> JobInfoModel:
     return JobInfoModel(**asdict(info), links=job_links(info))
+
+
+def job_view(services: Services, job_id: str) -> JobView:
+    """A job as the collection domain sees it (``lost`` when the queue forgot it)."""
+    info = services.queue.get(job_id)
+    error = info.error.message if info.error else None
+    return JobView(info.state, info.progress, info.message, error, info.result)
+
+
+def submit_refine(services: Services, record: SessionRecord, converter: str, params: dict, owner: str) -> JobInfo:
+    """Queue a refinement of a snapshot of a session (``params`` canonical) and note it on the session."""
+    kwargs = {
+        "data_dir": str(services.store.root),
+        "session": record.model_dump(mode="json"),
+        "converter": converter,
+        "params": params,
+    }
+    info = services.queue.submit("refine", kwargs, owner=owner)
+    services.records.add_job(record.id, info.id)
+    return info
 
 
 def submit_basis(services: Services, mesh_id: str, k: int, plugin: str, params: dict, owner: str) -> JobInfo:

@@ -10,8 +10,9 @@ from __future__ import annotations
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from curvefm.collection import CollectionRecord, MemberStatus
 from curvefm.fmap import DEFAULT_K
-from curvefm.session import SHARING_DESCRIPTION, CurveRecord, MapSummary, Sharing
+from curvefm.session import SHARING_DESCRIPTION, CurveRecord, MapSummary, Sharing, VertexId
 from curvefm.workers.interface import JobState
 
 
@@ -127,3 +128,65 @@ class RefineRequest(BaseModel):
     model_config = ConfigDict(extra="forbid")
     converter: str = "nearest-neighbor"
     params: dict = Field(default_factory=dict)
+
+
+class CollectionView(BaseModel):
+    collection: CollectionRecord
+    members: list[MemberStatus] = Field(description="per member: basis, curves answered, the newest run's job")
+
+
+class CollectionSummary(BaseModel):
+    id: str
+    name: str
+    owner: str
+    sharing: Sharing
+    template: str
+    k: int
+    n_curves: int = Field(description="template curves")
+    n_members: int
+    revision: int
+    updated_at: float
+
+
+class MembersRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    shapes: list[str] = Field(min_length=1, max_length=1000, description="shape ids of the new members")
+
+
+class AnswerRequest(BaseModel):
+    """A member's curve answering a template curve: its target side clicked on the member."""
+
+    model_config = ConfigDict(extra="forbid")
+    template_curve: str = Field(description="t1, t2, ...: the template curve answered (answering it again replaces)")
+    target: list[VertexId] = Field(min_length=2, description="waypoints on the member (file ids), or a whole path")
+    explicit: bool = Field(False, description="target is a whole edge-connected vertex path")
+    tracer: str | None = Field(None, description="the collection's tracer when none is named")
+    tracer_params: dict = Field(default_factory=dict)
+    weight: float = Field(1.0, gt=0)
+
+
+class RunRequest(RefineRequest):
+    members: list[str] | None = Field(
+        None, min_length=1, description="members to run (default all); the others keep the previous run's jobs"
+    )
+
+
+class MemberMapsResponse(BaseModel):
+    member: str
+    shape: str
+    session: str
+    job: str
+    revision: int = Field(description="the session revision the maps were computed from")
+    C_template_to_member: list[list[float]]
+    C_member_to_template: list[list[float]]
+    map_member_to_template: list[int] = Field(description="line i: template vertex of member vertex i (file ids)")
+    map_template_to_member: list[int] = Field(description="line j: member vertex of template vertex j (file ids)")
+    report: dict = Field(description="quality figures, and which maps a refining converter kept and why")
+
+
+class ComposedMaps(BaseModel):
+    a: str
+    b: str
+    run: str
+    map_a_to_b: list[int] = Field(description="line i: b's vertex of a's vertex i, via the template (file ids)")
+    C_a_to_b: list[list[float]] = Field(description="C_Tb C_aT: coefficients on a -> coefficients on b")

@@ -3,6 +3,7 @@
 * Sessions: the owner may do everything; others as its ``sharing`` says: ``private`` (nothing: the session
   answers 404, as if it did not exist), ``read`` (read it, its maps and transfers, and refine from it), ``edit``
   (also change its curves). Sharing and deleting are the owner's (403 for others who can see it).
+* Collections: as sessions; their member sessions are shared as the collection is.
 * Shapes and their bases are a shared library: every user sees and uses them; only an uploader deletes them.
 * Jobs: a basis job is visible to every user (its shape is, and a second request for the same basis joins
   it); a refinement job to its owner and, once finished, to whoever may read its session. Only the owner
@@ -14,6 +15,7 @@ from __future__ import annotations
 from typing import Literal
 
 from curvefm.access import User
+from curvefm.collection import CollectionRecord, UnknownCollection
 from curvefm.errors import Conflict, CurvefmError, Forbidden, NotFound
 from curvefm.service.deps import Services
 from curvefm.session import SessionRecord, UnknownSession
@@ -22,29 +24,41 @@ from curvefm.workers.interface import JobInfo, unknown_job
 Need = Literal["read", "edit", "manage"]
 
 
-def may_read(user: User, record: SessionRecord) -> bool:
+Shared = SessionRecord | CollectionRecord
+"""What has an owner and a sharing: sessions and collections (a collection's member sessions share alike)."""
+
+
+def may_read(user: User, record: Shared) -> bool:
     return user.admin or record.owner == user.name or record.sharing != "private"
 
 
-def may_edit(user: User, record: SessionRecord) -> bool:
+def may_edit(user: User, record: Shared) -> bool:
     return user.admin or record.owner == user.name or record.sharing == "edit"
 
 
-def may_manage(user: User, record: SessionRecord) -> bool:
+def may_manage(user: User, record: Shared) -> bool:
     return user.admin or record.owner == user.name
 
 
 def session_for(services: Services, user: User, session_id: str, need: Need) -> SessionRecord:
     """The record, when ``user`` may ``need`` it: 404 for a session they may not see, 403 for one they see
     but may not change so."""
-    record = services.sessions.record(session_id)
+    return _checked(services.sessions.record(session_id), user, need, "session", UnknownSession)
+
+
+def collection_for(services: Services, user: User, collection_id: str, need: Need) -> CollectionRecord:
+    """As :func:`session_for`, for a collection (its member sessions are shared alike)."""
+    return _checked(services.collections.record(collection_id), user, need, "collection", UnknownCollection)
+
+
+def _checked(record: Shared, user: User, need: Need, kind: str, unknown: type[CurvefmError]) -> Shared:
     if not may_read(user, record):
-        raise UnknownSession(session_id)
+        raise unknown(record.id)
     if need == "edit" and not may_edit(user, record):
-        raise Forbidden(f"session {session_id} is shared read-only by its owner {record.owner}; ask them to share "
-                        "it editable, or make your own session on the same shapes")
+        raise Forbidden(f"{kind} {record.id} is shared read-only by its owner {record.owner}; ask them to share "
+                        f"it editable, or make your own {kind} on the same shapes")
     if need == "manage" and not may_manage(user, record):
-        raise Forbidden(f"only the owner of session {session_id} ({record.owner}) or an admin may share or delete it")
+        raise Forbidden(f"only the owner of {kind} {record.id} ({record.owner}) or an admin may share or delete it")
     return record
 
 

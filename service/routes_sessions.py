@@ -16,7 +16,7 @@ from curvefm.errors import Conflict, CurvefmError
 from curvefm.geometry import save_textured_zip
 from curvefm.matching import save_maps_mat
 from curvefm.service.auth import AUTHENTICATED, CurrentUser
-from curvefm.service.deps import JOB_ERRORS, Services, ServicesDep, job_model, results_dir
+from curvefm.service.deps import JOB_ERRORS, Services, ServicesDep, job_model, results_dir, submit_refine
 from curvefm.service.errors import error_responses, require_plugin
 from curvefm.service.models import (
     CurveEdit,
@@ -91,7 +91,7 @@ def delete_session(session_id: str, services: ServicesDep, user: CurrentUser) ->
     owner or an admin."""
     session_for(services, user, session_id, "manage")
     for job_id in services.sessions.delete(session_id):
-        _discard_job(services, job_id)
+        discard_job(services, job_id)
     services.audit.record(user.name, "session.delete", session_id)
     return Response(status_code=204)
 
@@ -289,26 +289,12 @@ def refine(session_id: str, body: RefineRequest, services: ServicesDep, user: Cu
     vertex j, file ids), the other direction, the same maps as ``.npy``, both functional maps and a textured
     target OBJ. 429 at your concurrent-jobs quota, 413 when your stored bytes are at the byte quota."""
     record = session_for(services, user, session_id, "read")
-    plugin = require_plugin("converter", body.converter)
-    parsed = plugin.parse_params(body.params)
-    size = plugin.basis_size(parsed)
-    if size:  # a basis the shapes cannot have is a bad request now, not a failed job later
-        smallest = min(services.live.mesh(s).n_vertices for s in (record.source, record.target))
-        check_k(size, smallest, f"the smaller shape of session {session_id}")
-        services.sessions.limits.check("max_k", size, f"a basis of {size} functions for '{body.converter}'")
-    params = parsed.model_dump()
+    params = converter_params(services, body, (record.source, record.target), f"session {session_id}")
     if not record.curves:
         raise Conflict(f"session {session_id} has no curves yet; add at least one before refining")
-    kwargs = {
-        "data_dir": str(services.store.root),
-        "session": record.model_dump(mode="json"),
-        "converter": body.converter,
-        "params": params,
-    }
     with services.quotas.admit(user, "jobs") as charge:
-        info = services.queue.submit("refine", kwargs, owner=user.name)
+        info = submit_refine(services, record, body.converter, params, user.name)
         charge(info.id)
-    services.records.add_job(session_id, info.id)
     return job_model(info)
 
 
@@ -325,7 +311,20 @@ def list_refinements(session_id: str, services: ServicesDep, user: CurrentUser) 
     return visible
 
 
-def _discard_job(services: Services, job_id: str) -> None:
+def converter_params(services: Services, body: RefineRequest, shapes: tuple[str, ...], what: str) -> dict:
+    """The converter's canonical parameters, checked against the shapes it will run on: a basis the shapes cannot
+    have is a bad request now, not a failed job later."""
+    plugin = require_plugin("converter", body.converter)
+    parsed = plugin.parse_params(body.params)
+    size = plugin.basis_size(parsed)
+    if size:
+        smallest = min(services.live.mesh(s).n_vertices for s in shapes)
+        check_k(size, smallest, f"the smallest shape of {what}")
+        services.sessions.limits.check("max_k", size, f"a basis of {size} functions for '{body.converter}'")
+    return parsed.model_dump()
+
+
+def discard_job(services: Services, job_id: str) -> None:
     """Cancel the job if it still runs and delete its result files."""
     with contextlib.suppress(CurvefmError):  # it ended already, or the queue forgot it
         services.queue.cancel(job_id)

@@ -14,6 +14,7 @@ from typing import Annotated, Literal
 import numpy as np
 from fastapi import APIRouter, File, Form, Request, Response, UploadFile
 
+from curvefm.access import User
 from curvefm.cache import LRU
 from curvefm.errors import InvalidInput
 from curvefm.geometry import SUPPORTED_FORMATS, Mesh, load_mesh, texture_coordinates
@@ -54,6 +55,13 @@ def upload_shape(
     """Validate and store a mesh. Its id is the content hash, so uploading the same mesh again returns the
     existing shape (200 instead of 201), with you added to its uploaders. A rejected upload stores nothing. A new
     shape counts towards its first uploader's byte quota (413 when over it)."""
+    mesh_id, created = store_upload(services, user, file, name)
+    response.status_code = 201 if created else 200
+    return shape_info(services, mesh_id)
+
+
+def store_upload(services: Services, user: User, file: UploadFile, name: str | None = None) -> tuple[str, bool]:
+    """Validate and store an uploaded mesh of ``user``; returns its id and whether it is new."""
     filename = file.filename or ""
     suffix = Path(filename).suffix.lower()
     if suffix not in SUPPORTED_FORMATS:
@@ -66,14 +74,13 @@ def upload_shape(
         with open(path, "wb") as out:  # the body limit (BodySizeLimit) has bounded the upload already
             shutil.copyfileobj(file.file, out, COPY_CHUNK)
         mesh = load_mesh(path, name=name or Path(filename).stem)
-    if services.store.has_mesh(mesh.content_hash):
-        response.status_code = 200
-    else:
+    created = not services.store.has_mesh(mesh.content_hash)
+    if created:
         with services.quotas.admit(user, "shapes", stored_bytes(mesh)) as charge:
             charge(services.store.put_mesh(mesh))
     if services.store.add_uploader(mesh.content_hash, user.name):
         services.audit.record(user.name, "shape.upload", mesh.content_hash)
-    return shape_info(services, mesh.content_hash)
+    return mesh.content_hash, created
 
 
 @router.get("/shapes", response_model=list[ShapeInfo])

@@ -23,6 +23,8 @@ K = 30
 SCHEMA_VALID_BUT_REFUSED = {
     "POST /shapes": "whether a file is a mesh is not a JSON schema's to say",
     "POST /sessions/{session_id}/refine": "converter parameters that contradict each other (k_final < k_init)",
+    "POST /collections/{collection_id}/runs": "converter parameters that contradict each other (k_final < k_init)",
+    "POST /collections/{collection_id}/members/upload": "a multipart body with no file, or a file that is no mesh",
 }
 """Operations that may answer 400 to a request the schema accepts, and why (their 400 says so too)."""
 

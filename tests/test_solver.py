@@ -282,3 +282,33 @@ def test_restriction_samples_functions_by_the_sparse_operator(pair):
     np.testing.assert_allclose(restrict(M.vertices, path, bM.evecs, 50), operator @ bM.evecs, atol=1e-12)
     positions = restrict(M.vertices, path, M.vertices, 50)
     np.testing.assert_allclose(positions[[0, -1]], M.vertices[[path[0], path[-1]]], atol=1e-12)
+
+
+@pytest.mark.parametrize("energy", ["curves", "combined"])
+def test_every_solver_on_the_same_source_reuses_its_curve_factors(monkeypatch, energy):
+    """A collection's members share the template as their source: the template side of a curve is restricted
+    once (SOURCE_FACTORS), and the maps are the same bit for bit as when every solver restricts it itself."""
+    from curvefm.fmap import CombinedMapSolver, solver
+
+    M, basis_M = ellipsoid(), basis_of(ellipsoid(), 20)
+    members = [ellipsoid(radii=radii) for radii in ((1.1, 0.6, 0.55), (0.9, 0.8, 0.5))]
+    make = {"curves": CurveMapSolver, "combined": CombinedMapSolver}[energy]
+    curves = [(path, path, 1.0) for path in curves_on(M, ENDPOINTS[:2])]
+
+    def maps_of(member):
+        with make(M.vertices, basis_M, member.vertices, basis_of(member, 20), k=20) as one:
+            one.add_curves(curves)
+            return one.C_MN, one.C_NM
+
+    restrictions = []
+    original = solver.restrict
+    monkeypatch.setattr(solver, "restrict", lambda *args: restrictions.append(args[0] is M.vertices) or original(*args))
+    solver.SOURCE_FACTORS.clear()
+    cold = [maps_of(member) for member in members]
+    assert restrictions.count(True) == len(curves)  # the template side once per curve, not once per member
+    assert restrictions.count(False) == len(curves) * len(members)
+
+    solver.SOURCE_FACTORS.clear()
+    uncached = maps_of(members[1])
+    for got, expected in zip(uncached, cold[1], strict=True):
+        assert np.array_equal(got, expected)

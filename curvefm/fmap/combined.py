@@ -30,12 +30,10 @@ through ``Y C X`` terms, which no column solve can hold.
 
 from __future__ import annotations
 
-import hashlib
-
 import numpy as np
 
 from curvefm.cache import LRU
-from curvefm.fmap.solver import CurveMapSolver, CurveTerm
+from curvefm.fmap.solver import CurveMapSolver, basis_digest
 from curvefm.spectral import Basis, energy_filters, normalised, wave_kernel_signature
 
 # Chosen by the sweep in benchmarks/bench_combined_weights.py (see the README, "Choosing the combined energy's
@@ -60,7 +58,7 @@ def signature_products(basis_M: Basis, basis_N: Basis) -> np.ndarray:
 def signature_coefficients(basis: Basis) -> np.ndarray:
     """Coefficients (k x ENERGIES) of the unit-norm wave kernel signatures of a basis; computed once per basis
     (cached by the basis's content, so every session on the same shape shares them)."""
-    key = (_digest(basis), ENERGIES, SIGMA)
+    key = (basis_digest(basis), ENERGIES, SIGMA)
     return _SIGNATURES.get(key, lambda: basis.project(normalised(basis, wave_kernel_signature(basis, ENERGIES, SIGMA))))
 
 
@@ -108,26 +106,19 @@ class CombinedMapSolver(CurveMapSolver):
         self._signatures = self.descriptor_weight * signature_products(self.basis_M, self.basis_N)
         self._filters_M, self._filters_N = kernel_filters(self.basis_M.evals), kernel_filters(self.basis_N.evals)
 
-    def _factors(self, term: CurveTerm) -> tuple[np.ndarray, np.ndarray]:
-        """The curve's factors with its kernels' rows below: ``[PhiBar / sqrt(s); sqrt(w / p) K_M^T]`` (and the
-        same on N), so that the products sum the curve and kernel terms in one matrix product each."""
-        phi, psi = self._restricted(term)
-        K_M = kernel_coefficients(phi, self._filters_M, self.kernel_points)
-        K_N = kernel_coefficients(psi, self._filters_N, self.kernel_points)
-        curve_scale, kernel_scale = 1.0 / np.sqrt(self.samples), np.sqrt(self.kernel_weight / K_M.shape[1])
-        return (
-            np.vstack([phi * curve_scale, K_M.T * kernel_scale]),
-            np.vstack([psi * curve_scale, K_N.T * kernel_scale]),
-        )
+    def _side_factor(self, side: str, path: np.ndarray) -> np.ndarray:
+        """The curve's factor on one side with its kernels' rows below, ``[PhiBar / sqrt(s); sqrt(w / p) K_M^T]``
+        (and the same on N), so that the products sum the curve and kernel terms in one matrix product each."""
+        restricted = self._restricted(side, path)
+        kernels = kernel_coefficients(restricted, self._filters_M if side == "M" else self._filters_N,
+                                      self.kernel_points)  # fmt: skip
+        kernel_scale = np.sqrt(self.kernel_weight / kernels.shape[1])
+        return np.vstack([restricted * (1.0 / np.sqrt(self.samples)), kernels.T * kernel_scale])
+
+    def _factor_params(self) -> tuple:
+        return (self.kernel_weight, self.kernel_points, ENERGIES, SIGMA)
 
     def normal_equations(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         G_M, G_N, B = super().normal_equations()
         W_M, W_N, W_B = self._signatures
         return G_M + W_M, G_N + W_N, B + W_B
-
-
-def _digest(basis: Basis) -> bytes:
-    digest = hashlib.blake2b(basis.evals.tobytes(), digest_size=16)
-    digest.update(np.ascontiguousarray(basis.evecs[:8]).tobytes())
-    digest.update(str(basis.evecs.shape).encode())
-    return digest.digest()

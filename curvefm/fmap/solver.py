@@ -21,10 +21,15 @@ products are computed again from the paths when it is removed or replaced (well 
 stored curve costs a few bytes per path vertex instead of three k x k matrices (346 kB at k = 120).
 ``C_NM`` is the same problem with the roles of M and N exchanged; both are solved side by side on two threads,
 or, for a server, each when first read after an edit (``interactive``).
+
+The source side's factor of a curve (its restricted basis, scaled) depends only on M, its basis and the path, so it
+is cached by content (:data:`SOURCE_FACTORS`): a collection's members all share the template as their source, and
+every member's solver reuses the template curves' factors instead of restricting the template's basis again.
 """
 
 from __future__ import annotations
 
+import hashlib
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import Executor, ThreadPoolExecutor
@@ -32,6 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from curvefm.cache import LRU
 from curvefm.errors import Conflict, InvalidInput, NotFound
 from curvefm.fmap.column_solve import parallel_pays_off, solve_both, solve_columns
 from curvefm.fmap.restriction import DEFAULT_SAMPLES, restrict
@@ -44,6 +50,9 @@ RESUM_AFTER = 1e4
 removed since they were last summed exactly exceeds this many times the weight held, they are summed again
 (so the relative rounding stays below about 1e-12, whatever the weights: a curve of weight 1e12 added and
 removed again would otherwise change the map by 0.2%)."""
+SOURCE_FACTORS: LRU[np.ndarray] = LRU(256)
+"""Source-side curve factors (read-only arrays) by (solver kind and parameters, mesh and basis digest, path, samples):
+at k = 120 and 100 samples one is 96 kB (combined: 134 kB), so the cache holds at most about 35 MB."""
 
 
 @dataclass(frozen=True)
@@ -100,6 +109,7 @@ class CurveMapSolver:
         self.k, self.alpha, self.samples, self.interactive = k, float(alpha), samples, interactive
         self.vertices_M, self.vertices_N = vertices_M, vertices_N
         self.basis_M, self.basis_N = basis_M.truncated(k), basis_N.truncated(k)
+        self._source_digest = shape_digest(vertices_M, self.basis_M)
         scale = max(self.basis_M.evals[-1], self.basis_N.evals[-1], 1e-12)
         self.lam_M, self.lam_N = self.basis_M.evals / scale, self.basis_N.evals / scale
         self.curves: dict[str, CurveTerm] = {}
@@ -215,16 +225,24 @@ class CurveMapSolver:
         return products
 
     def _factors(self, term: CurveTerm) -> tuple[np.ndarray, np.ndarray]:
-        """``(PhiBar, PsiBar) / sqrt(s)``: the curve terms are ``||PsiBar C - PhiBar||^2 / s``."""
-        phi, psi = self._restricted(term)
-        scale = 1.0 / np.sqrt(self.samples)
-        return phi * scale, psi * scale
+        """``(X, Y)``, each side's :meth:`_side_factor`; the source's from :data:`SOURCE_FACTORS` when there."""
+        key = (type(self).__name__, self._factor_params(), self._source_digest, term.path_M.tobytes(), self.samples)
+        X = SOURCE_FACTORS.get(key, lambda: _read_only(self._side_factor("M", term.path_M)))
+        return X, self._side_factor("N", term.path_N)
 
-    def _restricted(self, term: CurveTerm) -> tuple[np.ndarray, np.ndarray]:
-        """``(PhiBar, PsiBar)``: both bases at the curve's uniform samples (s x k each)."""
-        phi = restrict(self.vertices_M, term.path_M, self.basis_M.evecs, self.samples)
-        psi = restrict(self.vertices_N, term.path_N, self.basis_N.evecs, self.samples)
-        return phi, psi
+    def _side_factor(self, side: str, path: np.ndarray) -> np.ndarray:
+        """``PhiBar / sqrt(s)`` on M (``side="M"``) or ``PsiBar / sqrt(s)`` on N: the curve terms are
+        ``||PsiBar C - PhiBar||^2 / s``."""
+        return self._restricted(side, path) * (1.0 / np.sqrt(self.samples))
+
+    def _restricted(self, side: str, path: np.ndarray) -> np.ndarray:
+        """The basis of ``side`` (``M`` or ``N``) at the curve's uniform samples (s x k)."""
+        vertices, basis = (self.vertices_M, self.basis_M) if side == "M" else (self.vertices_N, self.basis_N)
+        return restrict(vertices, path, basis.evecs, self.samples)
+
+    def _factor_params(self) -> tuple:
+        """What besides the shape, path and samples a side's factor depends on (a subclass's energy parameters)."""
+        return ()
 
     # -- solving ----------------------------------------------------------------------------------------
     def normal_equations(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -305,6 +323,26 @@ class CurveMapSolver:
 
 def _ms_since(started: float) -> float:
     return round((time.perf_counter() - started) * 1000, 3)
+
+
+def shape_digest(vertices: np.ndarray, basis: Basis) -> bytes:
+    """A digest of a mesh's vertices and its basis (eigenvalues, the first rows of the eigenvectors, the shape):
+    equal for the same shape and basis, whichever process loaded them."""
+    digest = hashlib.blake2b(np.ascontiguousarray(vertices).tobytes(), digest_size=16)
+    digest.update(basis_digest(basis))
+    return digest.digest()
+
+
+def basis_digest(basis: Basis) -> bytes:
+    digest = hashlib.blake2b(basis.evals.tobytes(), digest_size=16)
+    digest.update(np.ascontiguousarray(basis.evecs[:8]).tobytes())
+    digest.update(str(basis.evecs.shape).encode())
+    return digest.digest()
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    array.flags.writeable = False
+    return array
 
 
 def _compact(path, n_vertices: int) -> np.ndarray:

@@ -49,7 +49,13 @@ from curvefm.session.record import (
     Sharing,
     VertexPath,
 )
-from curvefm.session.record_store import DEFAULT_LOCK_TIMEOUT_S, SessionBusy, SessionStore, UnknownSession
+from curvefm.session.record_store import (
+    DEFAULT_LOCK_TIMEOUT_S,
+    RecordFiles,
+    SessionBusy,
+    SessionStore,
+    UnknownSession,
+)
 from curvefm.spectral import ShapePair  # defined below the maps that use it; the session's pair is the same type
 
 __all__ = [
@@ -68,6 +74,7 @@ __all__ = [
     "MapSummary",
     "MissingBasis",
     "Samples",
+    "RecordFiles",
     "SessionCreate",
     "SessionEditor",
     "SessionLimits",

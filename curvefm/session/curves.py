@@ -1,12 +1,11 @@
-"""Curve specs as users give them (file vertex ids) and tracing them into vertex paths.
-"""
+"""Curve specs as users give them (file vertex ids) and tracing them into vertex paths."""
 
 from __future__ import annotations
 
 import json
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
@@ -28,22 +27,37 @@ class CurveSpec(BaseModel):
     """One pair of corresponding curves, in file vertex ids (0-based).
 
     ``source`` and ``target`` are endpoints or waypoints joined by the tracer, or, with ``explicit``, whole
-    edge-connected vertex paths.
+    edge-connected vertex paths (``explicit="source"``: only the source is a path, as in a collection, whose
+    member curves answer a template curve traced once; ``"target"`` likewise).
     """
 
     model_config = ConfigDict(extra="forbid")
     source: list[VertexId] = Field(min_length=2, description="waypoints (at least start and end) or a path")
     target: list[VertexId] = Field(min_length=2, description="waypoints (at least start and end) or a path")
-    explicit: bool = False
+    explicit: bool | Literal["source", "target"] = Field(
+        False, description="true: both sides are whole vertex paths; 'source' or 'target': only that side is"
+    )
     tracer: str | None = Field(None, description="the session's tracer when none is named")
     tracer_params: dict = Field(default_factory=dict, description="parameters of the tracer named in 'tracer'")
     weight: float = Field(1.0, gt=0)
+    template_curve: str | None = Field(
+        None, max_length=64, description="in a collection's member session: the template curve this curve answers"
+    )
 
     @model_validator(mode="after")
     def _params_need_their_tracer(self) -> CurveSpec:
         if self.tracer_params and self.tracer is None:
             raise ValueError("tracer_params need the tracer they are for: name it in 'tracer'")
         return self
+
+    def is_path(self, side: str) -> bool:
+        """Whether the ``side`` (``source`` or ``target``) is given as a whole vertex path."""
+        return self.explicit is True or self.explicit == side
+
+    @property
+    def traced(self) -> bool:
+        """Whether a tracer joins the waypoints of at least one side."""
+        return self.explicit is not True
 
 
 class CurvesFile(BaseModel):
@@ -96,8 +110,8 @@ def trace_curve(
 def trace_pair(mesh_M: Mesh, mesh_N: Mesh, spec: CurveSpec, default_tracer: str) -> tuple[np.ndarray, np.ndarray]:
     tracer = spec.tracer or default_tracer
     paths = []
-    for mesh, ids in ((mesh_M, spec.source), (mesh_N, spec.target)):
-        if spec.explicit:
+    for side, mesh, ids in (("source", mesh_M, spec.source), ("target", mesh_N, spec.target)):
+        if spec.is_path(side):
             paths.append(trace_curve(mesh, path=ids))
         else:
             paths.append(trace_curve(mesh, waypoints=ids, tracer=tracer, params=spec.tracer_params))

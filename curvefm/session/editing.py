@@ -206,10 +206,10 @@ class SessionEditor:
     def _trace(self, record: SessionRecord, spec: CurveSpec) -> CurveRecord:
         """Trace a curve pair (no lock held). The returned record's id is a placeholder."""
         tracer = spec.tracer or record.tracer
-        if spec.tracer or not spec.explicit:  # a tracer named with an explicit path is checked all the same
+        if spec.tracer or spec.traced:  # a tracer named with an explicit path is checked all the same
             self.find_plugin("tracer", tracer).parse_params(spec.tracer_params)
         for side, ids in (("source", spec.source), ("target", spec.target)):
-            if spec.explicit:
+            if spec.is_path(side):
                 self.limits.check("max_path_vertices", len(ids), f"{len(ids)} vertices in the {side} path")
             else:
                 self.limits.check("max_waypoints", len(ids), f"{len(ids)} waypoints on the {side}")
@@ -220,7 +220,7 @@ class SessionEditor:
         return CurveRecord(
             id="new",
             spec=spec,
-            tracer="explicit" if spec.explicit else tracer,
+            tracer=tracer if spec.traced else "explicit",
             path_source=mesh_M.file_ids[path_M],
             path_target=mesh_N.file_ids[path_N],
         )
@@ -270,8 +270,10 @@ def _check_returned_id(record: SessionRecord, curve_id: str) -> None:
     if any(c.id == curve_id for c in record.curves):
         raise Conflict(f"curve id '{shown(curve_id)}' is in use in session {record.id}; give another or none")
     if not curve_id.startswith("c") or not curve_id[1:].isdigit() or int(curve_id[1:]) >= record.next_curve:
-        raise Conflict(f"session {record.id} never had a curve '{shown(curve_id)}'; only a deleted curve's id can "
-                       "be given back (to undo its deletion), or none for a new one")
+        raise Conflict(
+            f"session {record.id} never had a curve '{shown(curve_id)}'; only a deleted curve's id can "
+            "be given back (to undo its deletion), or none for a new one"
+        )
 
 
 def _summary(live: LiveSession, update_ms: float) -> MapSummary:

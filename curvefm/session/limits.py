@@ -19,6 +19,7 @@ class SessionLimits:
     max_path_vertices: int = field(default=20_000, metadata={"help": "vertices per curve path, traced or explicit"})
     max_curves: int = field(default=200, metadata={"help": "curves per session"})
     max_k: int = field(default=500, metadata={"help": "basis functions a session or basis request may ask for"})
+    max_members: int = field(default=200, metadata={"help": "members per collection (each is a session)"})
 
     def check(self, name: str, value: int, what: str) -> None:
         """Raise :class:`LimitExceeded` if ``value`` (described by ``what``, e.g. "2000 waypoints on the source")

@@ -9,6 +9,8 @@ Writers of one record, in any process on any machine sharing the directory, are 
 file lock (:meth:`SessionStore.locked`: an exclusive ``flock`` on ``<data>/sessions/.locks/<id>.lock``), held
 around read, check and write: every edit starts from the record as the last writer left it, whichever process
 that was. (A lock on the record file itself would not do: each write replaces that file by a new one.)
+
+:class:`RecordFiles` is that machinery for any kind of record (collections keep theirs the same way).
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Generic, TypeVar
 
 from pydantic import BaseModel
 
@@ -31,7 +34,8 @@ from curvefm.store import atomic_write
 DEFAULT_LOCK_TIMEOUT_S = 30.0
 PARSED_RECORDS = 64
 """Records kept parsed with the bytes they came from (a parse is most of a read; an edit reads its record 2-3 times)."""
-_SESSION_ID = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
+R = TypeVar("R", bound=BaseModel)
+_RECORD_ID = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
 
 
 class _Revision(BaseModel):
@@ -56,27 +60,120 @@ class SessionBusy(Unavailable):
         )
 
 
-class SessionStore:
-    """``lock_timeout_s``: how long a request waits for a session another request (or process) holds before
-    :class:`SessionBusy`; a stuck holder then costs each waiter that long, not a thread forever."""
+class RecordFiles(Generic[R]):
+    """Records of one kind, one JSON file each under ``<data>/<folder>/``: read, created, written atomically with
+    the next revision, and locked across processes (see the module doc). A subclass names its folder, record
+    model and errors (:meth:`unknown`, :meth:`busy`).
+
+    ``lock_timeout_s``: how long a request waits for a record another request (or process) holds before the
+    busy error; a stuck holder then costs each waiter that long, not a thread forever."""
+
+    kind: str
+    """What a record is, for messages ("session")."""
+    folder_name: str
+    model: type[R]
 
     def __init__(self, data_dir: str | Path, lock_timeout_s: float = DEFAULT_LOCK_TIMEOUT_S):
-        self.folder = Path(data_dir) / "sessions"
+        self.folder = Path(data_dir) / self.folder_name
         self.lock_timeout_s = lock_timeout_s
-        self._parsed: LRU[tuple[bytes, SessionRecord]] = LRU(PARSED_RECORDS)
+        self._parsed: LRU[tuple[bytes, R]] = LRU(PARSED_RECORDS)
 
-    def exists(self, session_id: str) -> bool:
-        return well_formed(session_id) and self._path(session_id).is_file()
+    def unknown(self, record_id: str) -> NotFound:
+        raise NotImplementedError
 
-    def read(self, session_id: str) -> SessionRecord:
+    def busy(self, record_id: str) -> Unavailable:
+        raise NotImplementedError
+
+    def exists(self, record_id: str) -> bool:
+        return well_formed(record_id) and self._path(record_id).is_file()
+
+    def read(self, record_id: str) -> R:
         """The stored record, always read from disk; parsed again only when its bytes changed since the last read."""
-        data = self._bytes(session_id)
-        parsed = self._parsed.peek(session_id)
+        data = self._bytes(record_id)
+        parsed = self._parsed.peek(record_id)
         if parsed is not None and parsed[0] == data:
             return parsed[1]
-        record = SessionRecord.model_validate_json(data)
-        self._parsed.put(session_id, (data, record))
+        record = self.model.model_validate_json(data)
+        self._parsed.put(record_id, (data, record))
         return record
+
+    def list(self) -> list[R]:
+        """All records, the most recently changed first."""
+        records = [self.model.model_validate_json(p.read_bytes()) for p in self.folder.glob("*.json")]
+        return sorted(records, key=lambda r: r.updated_at, reverse=True)
+
+    def create(self, record: R) -> None:
+        """Write a new record as it is; an id in use is a conflict."""
+        if not well_formed(record.id):
+            raise InvalidInput(f"a {self.kind} id is 1-64 letters, digits, '-' or '_', got '{record.id}'")
+        with self.locked(record.id, new=True):
+            if self._path(record.id).exists():
+                raise Conflict(f"{self.kind} '{record.id}' already exists")
+            self._write(record)
+
+    @contextmanager
+    def locked(self, record_id: str, new: bool = False) -> Iterator[None]:
+        """Hold the record's file lock, waiting for any other holder in this or another process. Only a ``new``
+        record's lock may be taken before it exists (so a request naming no record creates no file)."""
+        if not (self.exists(record_id) or (new and well_formed(record_id))):
+            raise self.unknown(record_id)
+        folder = self.folder / ".locks"
+        folder.mkdir(parents=True, exist_ok=True)
+        descriptor = os.open(folder / f"{record_id}.lock", os.O_RDWR | os.O_CREAT, 0o600)
+        try:
+            self._flock(descriptor, record_id)
+            yield
+        finally:
+            os.close(descriptor)  # releases the lock
+
+    def _flock(self, descriptor: int, record_id: str) -> None:
+        """An exclusive flock, polled (flock itself cannot time out) with waits growing from 1 to 50 ms."""
+        deadline, pause = time.monotonic() + self.lock_timeout_s, 0.001
+        while True:
+            try:
+                fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                return
+            except BlockingIOError:
+                if time.monotonic() >= deadline:
+                    raise self.busy(record_id) from None
+                time.sleep(pause)
+                pause = min(2 * pause, 0.05)
+
+    def remove(self, record_id: str) -> None:
+        if not self.exists(record_id):
+            raise self.unknown(record_id)
+        self._path(record_id).unlink()
+        self._parsed.pop(record_id)
+
+    def write(self, record: R) -> R:
+        """Replace the stored record by ``record`` with the next revision and the current time; returns what
+        was written."""
+        written = record.model_copy(update={"revision": record.revision + 1, "updated_at": time.time()})
+        self._write(written)
+        return written
+
+    def _bytes(self, record_id: str) -> bytes:
+        if not self.exists(record_id):
+            raise self.unknown(record_id)
+        return self._path(record_id).read_bytes()
+
+    def _write(self, record: R) -> None:
+        atomic_write(self._path(record.id), record.model_dump_json(indent=1).encode())
+
+    def _path(self, record_id: str) -> Path:
+        return self.folder / f"{record_id}.json"
+
+
+class SessionStore(RecordFiles[SessionRecord]):
+    """Session records under ``<data>/sessions/``, with the ids of the refinement jobs run from each."""
+
+    kind, folder_name, model = "session", "sessions", SessionRecord
+
+    def unknown(self, record_id: str) -> NotFound:
+        return UnknownSession(record_id)
+
+    def busy(self, record_id: str) -> Unavailable:
+        return SessionBusy(record_id, self.lock_timeout_s)
 
     def read_changed(self, session_id: str, revision: int) -> SessionRecord | None:
         """The stored record if its revision is not ``revision``, else ``None``: then only the revision is parsed
@@ -86,56 +183,11 @@ class SessionStore:
             return None
         return SessionRecord.model_validate_json(data)
 
-    def list(self) -> list[SessionRecord]:
-        """All records, the most recently changed first."""
-        records = [SessionRecord.model_validate_json(p.read_bytes()) for p in self.folder.glob("*.json")]
-        return sorted(records, key=lambda r: r.updated_at, reverse=True)
-
-    def create(self, record: SessionRecord) -> None:
-        """Write a new record as it is; an id in use is a conflict."""
-        if not well_formed(record.id):
-            raise InvalidInput(f"a session id is 1-64 letters, digits, '-' or '_', got '{record.id}'")
-        with self.locked(record.id, new=True):
-            if self._path(record.id).exists():
-                raise Conflict(f"session '{record.id}' already exists")
-            self._write(record)
-
-    @contextmanager
-    def locked(self, session_id: str, new: bool = False) -> Iterator[None]:
-        """Hold the record's file lock, waiting for any other holder in this or another process. Only a ``new``
-        session's lock may be taken before its record exists (so a request naming no session creates no file)."""
-        if not (self.exists(session_id) or (new and well_formed(session_id))):
-            raise UnknownSession(session_id)
-        folder = self.folder / ".locks"
-        folder.mkdir(parents=True, exist_ok=True)
-        descriptor = os.open(folder / f"{session_id}.lock", os.O_RDWR | os.O_CREAT, 0o600)
-        try:
-            self._flock(descriptor, session_id)
-            yield
-        finally:
-            os.close(descriptor)  # releases the lock
-
-    def _flock(self, descriptor: int, session_id: str) -> None:
-        """An exclusive flock, polled (flock itself cannot time out) with waits growing from 1 to 50 ms."""
-        deadline, pause = time.monotonic() + self.lock_timeout_s, 0.001
-        while True:
-            try:
-                fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
-                return
-            except BlockingIOError:
-                if time.monotonic() >= deadline:
-                    raise SessionBusy(session_id, self.lock_timeout_s) from None
-                time.sleep(pause)
-                pause = min(2 * pause, 0.05)
-
     def delete(self, session_id: str) -> list[str]:
         """Remove the record; returns the ids of the refinement jobs run from it (their results are the
         caller's to delete)."""
-        if not self.exists(session_id):
-            raise UnknownSession(session_id)
         jobs = self.jobs(session_id)
-        self._path(session_id).unlink()
-        self._parsed.pop(session_id)
+        self.remove(session_id)
         self._jobs_path(session_id).unlink(missing_ok=True)
         return jobs
 
@@ -153,28 +205,10 @@ class SessionStore:
         except FileNotFoundError:
             return []
 
-    def write(self, record: SessionRecord) -> SessionRecord:
-        """Replace the stored record by ``record`` with the next revision and the current time; returns what
-        was written."""
-        written = record.model_copy(update={"revision": record.revision + 1, "updated_at": time.time()})
-        self._write(written)
-        return written
-
-    def _bytes(self, session_id: str) -> bytes:
-        if not self.exists(session_id):
-            raise UnknownSession(session_id)
-        return self._path(session_id).read_bytes()
-
-    def _write(self, record: SessionRecord) -> None:
-        atomic_write(self._path(record.id), record.model_dump_json(indent=1).encode())
-
-    def _path(self, session_id: str) -> Path:
-        return self.folder / f"{session_id}.json"
-
     def _jobs_path(self, session_id: str) -> Path:
         return self.folder / f"{session_id}.jobs"
 
 
-def well_formed(session_id: str) -> bool:
-    """Whether ``session_id`` can name a session (and a file): 1-64 letters, digits, ``-`` or ``_``."""
-    return bool(_SESSION_ID.match(session_id))
+def well_formed(record_id: str) -> bool:
+    """Whether ``record_id`` can name a record (and a file): 1-64 letters, digits, ``-`` or ``_``."""
+    return bool(_RECORD_ID.match(record_id))
