@@ -3,7 +3,7 @@
 // the prompt, the person clicks its start and end (Shift+click: waypoints) on the target only, and the answer
 // updates the map and the texture as any curve edit does; then the next unanswered template curve is current.
 import { answerOf, clearPending, recordEdit, setCurrentTemplateCurve, state, templateCurves } from "../store.js";
-import { showCollection } from "../views/collections.js";
+import { openCollectionsPanel, showCollection } from "../views/collections.js";
 import { showCurves, showPending, showTracing } from "../views/curves.js";
 import { openSession } from "./session.js";
 import { tracerChoice } from "./curves.js";
@@ -23,6 +23,7 @@ export async function openMember(memberId) {
   await openSession(member.session, { guide });
   if (state.guide !== guide) return; // the session did not open, or another one was opened meanwhile
   setCurrentTemplateCurve(templateCurves().find((curve) => !curve.answer)?.id ?? null);
+  openCollectionsPanel();
   showCollection();
   redraw();
 }

@@ -79,6 +79,11 @@ function memberItem(member) {
   return item;
 }
 
+/** A member opened for guided clicking: its guide shows. */
+export function openCollectionsPanel() {
+  $("collections-panel").open = true;
+}
+
 /** The guide of the member being clicked: its name, the prompt, and the template curves (answered, current). */
 export function showGuide() {
   const { guide } = state;
