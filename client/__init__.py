@@ -16,6 +16,6 @@ Error answers raise the project's own exceptions (:mod:`curvefm.errors`: ``Confl
 that ends without result raises :class:`JobFailed`.
 """
 
-from curvefm.client.api import Client, Curve, Job, JobFailed, RefineJob, Refinement, Session
+from curvefm.client.api import Client, Collection, Curve, Job, JobFailed, RefineJob, Refinement, Session
 
-__all__ = ["Client", "Curve", "Job", "JobFailed", "RefineJob", "Refinement", "Session"]
+__all__ = ["Client", "Collection", "Curve", "Job", "JobFailed", "RefineJob", "Refinement", "Session"]

@@ -98,8 +98,9 @@ class Client:
     def session(self, source: str, target: str, k: int = DEFAULT_K, **options) -> Session:
         """A new session of yours on two shapes whose bases are ready; ``options``: ``alpha``, ``tracer``,
         ``samples``, ``name``, ``sharing``, ``basis_plugin``, ``basis_params`` (see ``/docs``)."""
-        return Session(self, self.json("POST", "/sessions", json={"source": source, "target": target, "k": k,
-                                                                   **options}))
+        return Session(
+            self, self.json("POST", "/sessions", json={"source": source, "target": target, "k": k, **options})
+        )
 
     def open_session(self, session_id: str) -> Session:
         """An existing session (yours, or one shared with you)."""
@@ -108,6 +109,16 @@ class Client:
     def sessions(self) -> list[dict]:
         """Summaries of the sessions you may see."""
         return self.json("GET", "/sessions")
+
+    def collection(self, template: str, from_session: str | None = None, **options) -> Collection:
+        """A new collection of yours on a template shape: its curves from a session on the template
+        (``from_session``) or ``curves=[{"waypoints": [i, j]}, ...]``; ``options``: ``members`` (shape ids),
+        ``name``, ``k``, ``sharing``, ... (see ``/docs``)."""
+        body = {"template": template, "from_session": from_session, **options}
+        return Collection(self, self.json("POST", "/collections", json=body))
+
+    def open_collection(self, collection_id: str) -> Collection:
+        return Collection(self, self.json("GET", f"/collections/{collection_id}"))
 
     def job(self, job_id: str) -> Job:
         info = self.json("GET", f"/jobs/{job_id}")
@@ -214,8 +225,9 @@ class Curve:
     @classmethod
     def of(cls, record: dict) -> Curve:
         spec = record["spec"]
-        return cls(record["id"], spec["source"], spec["target"], record["tracer"], record["path_source"],
-                   record["path_target"])
+        return cls(
+            record["id"], spec["source"], spec["target"], record["tracer"], record["path_source"], record["path_target"]
+        )
 
 
 class Session:
@@ -272,3 +284,85 @@ class Session:
     def delete(self) -> None:
         """Delete the session and its refinement results."""
         self.client.request("DELETE", self.path)
+
+
+class Collection:
+    """A collection on the server: a template with curves and member shapes (``info``: the last
+    ``GET /collections/{id}`` answer, members with their progress)."""
+
+    def __init__(self, client: Client, info: dict):
+        self.client, self.info = client, info
+
+    def __repr__(self) -> str:
+        return f"Collection({self.id!r}, members={len(self.info['members'])})"
+
+    @property
+    def id(self) -> str:
+        return self.info["collection"]["id"]
+
+    @property
+    def path(self) -> str:
+        return f"/collections/{self.id}"
+
+    def refresh(self) -> dict:
+        self.info = self.client.json("GET", self.path)
+        return self.info
+
+    def add(self, shapes: list[str]) -> list[dict]:
+        """Add stored shapes as members; returns every member's status."""
+        self.info = self.client.json("POST", f"{self.path}/members", json={"shapes": list(shapes)})
+        return self.info["members"]
+
+    def upload(self, paths: list[str | Path]) -> list[dict]:
+        """Upload mesh files at once as new members; returns every member's status."""
+        handles = [open(path, "rb") for path in paths]  # noqa: SIM115  (closed below)
+        try:
+            files = [("files", (Path(path).name, handle)) for path, handle in zip(paths, handles, strict=True)]
+            self.info = self.client.json("POST", f"{self.path}/members/upload", files=files)
+        finally:
+            for handle in handles:
+                handle.close()
+        return self.info["members"]
+
+    def wait_bases(self, timeout: float | None = None, poll_s: float = 0.5) -> list[dict]:
+        """Wait until every member's basis is ready (a failed basis job raises)."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while not all(m["basis"] == "ready" for m in self.refresh()["members"]):
+            failed = [m["id"] for m in self.info["members"] if m["basis"] in ENDED]
+            if failed or (deadline is not None and time.monotonic() > deadline):
+                raise TimeoutError(f"collection {self.id}: bases not ready (failed: {failed or 'none'})")
+            time.sleep(poll_s)
+        return self.info["members"]
+
+    def answer(self, member: str, template_curve: str, target: list[int], **options) -> Curve:
+        """Answer a template curve on a member with ``target`` (waypoints on the member)."""
+        body = {"template_curve": template_curve, "target": list(target), **options}
+        return Curve.of(self.client.json("POST", f"{self.path}/members/{member}/curves", json=body)["curve"])
+
+    def run(self, converter: str = "nearest-neighbor", members: list[str] | None = None, **params) -> dict:
+        """Refine every member (or ``members``) as jobs; returns the run's status (``id``, per member ``state``)."""
+        body = {"converter": converter, "params": params, "members": members}
+        return self.client.json("POST", f"{self.path}/runs", json=body)
+
+    def wait_run(self, run_id: str, timeout: float | None = None, poll_s: float = 0.5) -> dict:
+        """Wait until the run ended for every member; a run that ended unfinished for some raises."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while (run := self.client.json("GET", f"{self.path}/runs/{run_id}"))["state"] not in ("finished", "failed"):
+            if deadline is not None and time.monotonic() > deadline:
+                raise TimeoutError(f"run {run_id} of collection {self.id} still {run['state']}")
+            time.sleep(poll_s)
+        if run["state"] == "failed":
+            failed = [f"{m['member']}: {m['error'] or m['state']}" for m in run["members"] if m["state"] != "finished"]
+            raise InvalidInput(f"run {run_id} of collection {self.id} failed for {'; '.join(failed)}")
+        return run
+
+    def archive(self, run_id: str, out: str | Path, kind: Literal["npz", "zip"] = "npz") -> Path:
+        """Download a finished run's archive to ``out``."""
+        Path(out).write_bytes(self.client.download(f"{self.path}/runs/{run_id}/archive.{kind}"))
+        return Path(out)
+
+    def composed(self, run_id: str, a: str, b: str) -> tuple[np.ndarray, np.ndarray]:
+        """``(map_a_to_b, C_a_to_b)``: member a to member b through the template."""
+        data = self.client.download(f"{self.path}/runs/{run_id}/members/{a}/to/{b}?format=npz")
+        with np.load(io.BytesIO(data)) as arrays:
+            return arrays["map_a_to_b"], arrays["C_a_to_b"]

@@ -80,6 +80,131 @@ def _json_option(text: str, option: str) -> dict:
     return value
 
 
+class _Collections:
+    """What the ``collection`` commands work with on a data directory: the stores, and jobs run in this process
+    with durable records (so a service on the same directory shows them; no queue is opened, which would declare
+    the service's running jobs lost)."""
+
+    def __init__(self, data: str | None):
+        from curvefm.collection import CollectionEditor, CollectionStore
+        from curvefm.session import LiveSessions, SessionEditor, SessionStore
+        from curvefm.store import Store
+        from curvefm.workers.records import JobRecords
+
+        self.store = Store(data) if data else Store()
+        records = SessionStore(self.store.root)
+        self.sessions = SessionEditor(records, LiveSessions(self.store, records))
+        self.collections = CollectionEditor(CollectionStore(self.store.root), self.sessions)
+        self.jobs = JobRecords(self.store.root)
+
+    def shape(self, mesh_or_id: str, k: int) -> str:
+        """A stored shape id for a mesh file (stored now) or an id, with its basis computed here if missing."""
+        from curvefm.geometry import load_mesh
+
+        mesh = self.store.get_mesh(mesh_or_id) if self.store.has_mesh(mesh_or_id) else load_mesh(mesh_or_id)
+        self.store.put_mesh(mesh)
+        self.store.ensure_basis(mesh, k, progress=progress_bar(f"basis {mesh.name}"))
+        return mesh.content_hash
+
+    def job_view(self, job_id: str):
+        from curvefm.collection import JobView
+
+        stored = self.jobs.load(job_id)
+        if stored is None:
+            return JobView("lost", message="no record of the job")
+        info = stored.info
+        return JobView(info.state, info.progress, info.message, info.error.message if info.error else None, info.result)
+
+    def refine(self, session, converter: str, params: dict) -> str:
+        """Run a refinement job here, recorded as the service records its jobs; returns its id."""
+        import time
+        import uuid
+
+        from curvefm.workers.context import JobContext, embedded_job
+        from curvefm.workers.interface import JobFailure, JobInfo
+        from curvefm.workers.jobs import refine
+        from curvefm.workers.records import StoredJob
+
+        job_id = uuid.uuid4().hex
+        kwargs = {"data_dir": str(self.store.root), "session": session.model_dump(mode="json"),
+                  "converter": converter, "params": params}  # fmt: skip
+        info = JobInfo(job_id, "refine", "started", message="started", created_at=time.time(), owner=session.owner)
+        self.jobs.create(StoredJob(info, kwargs, runner="cli"))
+        self.sessions.records.add_job(session.id, job_id)
+        try:
+            with embedded_job(JobContext(job_id, progress_bar(f"refine {session.target[:12]}"))):
+                result = refine(**kwargs)
+        except CurvefmError as exc:
+            self.jobs.update(job_id, state="failed", error=JobFailure.of(exc), ended_at=time.time())
+            return job_id
+        finished = {"state": "finished", "progress": 1.0, "message": "finished", "ended_at": time.time()}
+        self.jobs.update(job_id, result=result, **finished)
+        return job_id
+
+
+def _status_lines(manage: _Collections, collection_id: str) -> list[str]:
+    from curvefm.collection import member_status
+
+    record = manage.collections.record(collection_id)
+    counts = f"{len(record.curves)} template curves, {len(record.members)} members, {len(record.runs)} runs"
+    lines = [f"collection {record.id} '{record.name}': template {record.template}, k={record.k}, {counts}"]
+    for member in record.members:
+        status = member_status(record, member, manage.sessions.record(member.session), "", manage.job_view)
+        run = f", {status.last_run.state} in the newest run" if status.last_run else ""
+        lines.append(f"  {member.id} {member.shape[:12]} session {member.session}: {status.curves_done}/"
+                     f"{status.curves_total} template curves, {status.extra_curves} extra{run}")  # fmt: skip
+    return lines
+
+
+def cmd_collection_create(args) -> int:
+    from curvefm.collection import CollectionCreate, TemplateCurveSpec
+
+    manage = _Collections(args.data)
+    curves = json.loads(Path(args.curves).read_text())["curves"] if args.curves else []
+    request = CollectionCreate(
+        name=args.name, template=manage.shape(args.template, args.k), from_session=args.from_session, k=args.k,
+        curves=[TemplateCurveSpec.model_validate(c) for c in curves], sharing=args.sharing,
+    )  # fmt: skip
+    record = manage.collections.create(request, owner=args.owner)
+    print("\n".join(_status_lines(manage, record.id)))
+    return 0
+
+
+def cmd_collection_add(args) -> int:
+    manage = _Collections(args.data)
+    k = manage.collections.record(args.collection).k
+    members = manage.collections.add_members(args.collection, [manage.shape(mesh, k) for mesh in args.meshes])
+    answers = json.loads(Path(args.curves).read_text())["curves"] if args.curves else []
+    for member in members:
+        for answer in answers:
+            manage.collections.answer(args.collection, member.id, **answer)
+    print("\n".join(_status_lines(manage, args.collection)))
+    return 0
+
+
+def cmd_collection_status(args) -> int:
+    print("\n".join(_status_lines(_Collections(args.data), args.collection)))
+    return 0
+
+
+def cmd_collection_export(args) -> int:
+    from curvefm import registry
+    from curvefm.collection import archive_summary, run_maps, write_npz, write_zip
+
+    manage = _Collections(args.data)
+    _, parsed = registry.load("converter", args.converter, _json_option(args.params, "--params"))
+    params = parsed.model_dump()
+    run = manage.collections.start_run(
+        args.collection, args.converter, params, lambda session: manage.refine(session, args.converter, params),
+        args.members,
+    )  # fmt: skip
+    record = manage.collections.record(args.collection)
+    maps = run_maps(record, run, manage.job_view, manage.store.root / "results")
+    (write_zip if args.out.endswith(".zip") else write_npz)(args.out, maps, archive_summary(record, run, maps))
+    print(f"run {run.id}: {len(maps)} members written to {args.out}")
+    return 0
+
+
 def cmd_evaluate(args) -> int:
     from curvefm.evaluation import evaluate_pair
     from curvefm.store import Store
@@ -315,6 +440,33 @@ def parser() -> argparse.ArgumentParser:
     ut.add_argument("name")
     ut.add_argument("--rotate", action="store_true", help="make a new token and print it; the old one stops working")
     ut.set_defaults(run=cmd_users_token)
+
+    c = sub.add_parser("collection", help="a template with curves and many member shapes, on the data directory")
+    collection = c.add_subparsers(dest="collection_command", required=True)
+    cc = collection.add_parser("create", parents=[data], help="a collection on a template (mesh file or shape id)")
+    cc.add_argument("template")
+    cc.add_argument("--from-session", help="a session on the template whose curves become the template curves")
+    cc.add_argument("--curves", help='JSON: {"curves": [{"waypoints": [i, j], "name": "..."}]} on the template')
+    cc.add_argument("--name", default="")
+    cc.add_argument("--k", type=int, default=DEFAULT_K, help="basis size (default %(default)s)")
+    cc.add_argument("--owner", default="", help="the user who owns it (default none: admins only)")
+    cc.add_argument("--sharing", default="private", choices=["private", "read", "edit"])
+    cc.set_defaults(run=cmd_collection_create)
+    ca = collection.add_parser("add", parents=[data], help="add member shapes (mesh files or shape ids)")
+    ca.add_argument("collection")
+    ca.add_argument("meshes", nargs="+")
+    ca.add_argument("--curves", help='JSON: {"curves": [{"template_curve": "t1", "target": [i, j]}]} for each one')
+    ca.set_defaults(run=cmd_collection_add)
+    cs = collection.add_parser("status", parents=[data], help="members, curves answered, newest run")
+    cs.add_argument("collection")
+    cs.set_defaults(run=cmd_collection_status)
+    ce = collection.add_parser("export", parents=[data], help="refine every member here and write the archive")
+    ce.add_argument("collection")
+    ce.add_argument("--out", required=True, help="archive path: .npz, or .zip for text files")
+    ce.add_argument("--converter", default="nearest-neighbor")
+    ce.add_argument("--params", default="{}", help="converter parameters as JSON")
+    ce.add_argument("--members", nargs="+", help="members to run (default all)")
+    ce.set_defaults(run=cmd_collection_export)
 
     pl = sub.add_parser("plugins", help="list installed plugins with their parameters")
     pl.add_argument("--json", action="store_true")

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import io
 import json
+import subprocess
+import sys
 import time
 import zipfile
 
@@ -165,3 +167,48 @@ def test_composition_through_the_template_against_faust_ground_truth(processes, 
     error = evaluate_map(p2p, identity_truth(meshes[1], meshes[2]), meshes[2]).mean
     assert max(direct) < 0.1, direct
     assert error < 0.1 and error < 2.5 * max(direct), (error, direct)
+
+
+def test_the_client_and_the_cli_make_the_same_collection(processes, tmp_path):
+    """The Python client over HTTP (members uploaded together as files) and ``curvefm collection`` on a data
+    directory, given the same shapes and curves, write archives with the same maps."""
+    from curvefm.client import Client
+
+    files = []
+    for number, radii in enumerate(((1, 0.7, 0.5), (1, 1, 1), (1.1, 0.6, 0.55))):
+        files.append(tmp_path / f"shape{number}.off")
+        files[-1].write_bytes(off_bytes(ellipsoid(8, 16, radii)))
+    curves = [{"waypoints": ends} for ends in CURVES]
+    answers = [{"template_curve": f"t{n}", "target": ends} for n, ends in enumerate(CURVES, 1)]
+
+    api = processes.api(tmp_path / "data")
+    with Client(api.url, api.token) as client:
+        collection = client.collection(client.upload(files[0]), curves=curves, k=K)
+        assert [m["id"] for m in collection.upload(files[1:])] == ["m1", "m2"]
+        collection.wait_bases(timeout=60)
+        for member in ("m1", "m2"):
+            for answer in answers:
+                collection.answer(member, answer["template_curve"], answer["target"])
+        run = collection.wait_run(collection.run()["id"], timeout=120)
+        served = np.load(collection.archive(run["id"], tmp_path / "served.npz"))
+        p2p, C = collection.composed(run["id"], "m1", "m2")
+        assert np.array_equal(p2p, served["m2/map_template_to_member"][served["m1/map_member_to_template"]])
+
+    (tmp_path / "answers.json").write_text(json.dumps({"curves": answers}))
+    (tmp_path / "curves.json").write_text(json.dumps({"curves": curves}))
+    cli = [sys.executable, "-m", "curvefm.cli", "collection"]
+    data = ["--data", str(tmp_path / "cli-data")]
+    made = subprocess.run([*cli, "create", str(files[0]), "--curves", str(tmp_path / "curves.json"), "--k", str(K),
+                           *data], capture_output=True, text=True, check=True)  # fmt: skip
+    collection_id = made.stdout.split()[1]
+    subprocess.run([*cli, "add", collection_id, *map(str, files[1:]), "--curves", str(tmp_path / "answers.json"),
+                    *data], capture_output=True, check=True)  # fmt: skip
+    subprocess.run([*cli, "export", collection_id, "--out", str(tmp_path / "cli.npz"), *data], capture_output=True,
+                   check=True)  # fmt: skip
+    status = subprocess.run([*cli, "status", collection_id, *data], capture_output=True, text=True, check=True)
+    assert status.stdout.count("3/3 template curves") == 2 and "finished in the newest run" in status.stdout
+    written = np.load(tmp_path / "cli.npz")
+    assert sorted(written.files) == sorted(served.files)
+    for name in served.files:
+        if name != "summary.json":
+            np.testing.assert_allclose(written[name], served[name], atol=1e-10, err_msg=name)
