@@ -112,6 +112,19 @@ export const api = {
   refinements: (id) => request("GET", `/sessions/${enc(id)}/refinements`),
   refine: (id, converter, params) => request("POST", `/sessions/${enc(id)}/refine`, { json: { converter, params } }),
 
+  collections: () => request("GET", "/collections"),
+  collection: (id) => request("GET", `/collections/${enc(id)}`),
+  /** body: { name, template, from_session } or { name, template, curves } (see POST /collections). */
+  createCollection: (body) => request("POST", "/collections", { json: body }),
+  addMembers: (id, shapes) => request("POST", `/collections/${enc(id)}/members`, { json: { shapes } }),
+  /** Answer template curve ``answer.template_curve`` on a member with ``answer.target`` (member file ids); answering
+   * it again replaces the earlier answer. Resolves to a curve edit, as addCurve. */
+  answerCurve: (id, member, answer) =>
+    request("POST", `/collections/${enc(id)}/members/${enc(member)}/curves`, { json: answer }),
+  startRun: (id, converter, params) => request("POST", `/collections/${enc(id)}/runs`, { json: { converter, params } }),
+  run: (id, run) => request("GET", `/collections/${enc(id)}/runs/${enc(run)}`),
+  archiveUrl: (id, run, kind) => `/collections/${enc(id)}/runs/${enc(run)}/archive.${kind}`,
+
   job: (id) => request("GET", `/jobs/${enc(id)}`),
   cancelJob: (id) => request("DELETE", `/jobs/${enc(id)}`),
   text: (path) => request("GET", path, { as: "text" }),

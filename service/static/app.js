@@ -3,6 +3,7 @@
 //
 // The entry point: it binds every control of the page to what it does (controllers/), installs the hooks of the
 // tests and benchmarks, and starts. The state lives in store.js; views/ draws it; api.js talks to the service.
+import { addMembers, chooseCollection, createCollection, runAll } from "./controllers/collections.js";
 import { watchConnection } from "./controllers/connection.js";
 import { cancelPending, clickCurveList, pickVertex, pressKey, undo } from "./controllers/curves.js";
 import {
@@ -16,6 +17,7 @@ import {
   showCurveTubes,
   useTextureImage,
 } from "./controllers/display.js";
+import { clickMemberList, clickTemplateList, skip, step } from "./controllers/guide.js";
 import { logOut, watchLogin } from "./controllers/login.js";
 import { openPair, upload } from "./controllers/pair.js";
 import { cancelRefine, downloadLiveExport, downloadLiveMap, refine } from "./controllers/refine.js";
@@ -52,6 +54,17 @@ function bindControls() {
   on("target-select", "change", chooseTarget);
   on("session-select", "change", (event) => chooseSession(event.target.value));
   on("sharing-select", "change", (event) => shareSession(event.target.value));
+  // Collections
+  on("collection-select", "change", (event) => chooseCollection(event.target.value));
+  on("create-collection", "click", createCollection);
+  on("add-members", "click", addMembers);
+  on("member-list", "click", clickMemberList);
+  on("template-curves", "click", clickTemplateList);
+  on("guide-skip", "click", skip);
+  on("guide-previous", "click", () => step(-1));
+  on("guide-next", "click", () => step(1));
+  on("run-converter-select", "change", () => showParameters("converter", "run-converter"));
+  on("run-all", "click", runAll);
   // Curves
   on("tracer-select", "change", () => showParameters("tracer"));
   on("curve-list", "click", clickCurveList);
@@ -86,6 +99,10 @@ function installTestHooks() {
     },
     get ready() {
       return state.ready;
+    },
+    /** The guided member and its current template curve: { collection, member, current } or null. */
+    get guide() {
+      return state.guide && { ...state.guide };
     },
     vertexToScreen(side, fileId) {
       const { mesh } = state.shapes[side];

@@ -30,6 +30,11 @@ export const state = {
   user: null, // GET /auth/me: { name, admin } once logged in
   loggedOut: false, // the service refused the page's credentials (none, expired, or the token changed)
   stats: { samples: [], last: null }, // click-to-texture timings (window.curvefmStats)
+  shapeNames: new Map(), // shape id -> name, from the last GET /shapes
+  collection: null, // the chosen collection as GET /collections/{id} shows it: { collection: record, members }
+  // Guided clicking: the open session is a member's of state.collection, and target clicks answer the current
+  // template curve (null: none left; clicks enter extra curves as in any session).
+  guide: null, // { collection: id, member: member id, current: template curve id or null }
 };
 
 const listeners = new Map(); // key -> Set of listener(value)
@@ -48,9 +53,11 @@ export function setPlugins(plugins) {
   state.plugins = plugins;
 }
 
-/** A session was loaded with its shapes: what belonged to the session shown before is dropped. */
-export function sessionOpened(session, shapes) {
+/** A session was loaded with its shapes (a member's, guided by ``guide``, or a plain one): what belonged to the
+ * session shown before is dropped. */
+export function sessionOpened(session, shapes, guide = null) {
   Object.assign(state, { session, shapes, region: null, pickingRegion: state.fn === "indicator", pointwise: null });
+  state.guide = guide;
   state.quality = null;
   Object.assign(state, { selected: null, map: "functional", history: [], pending: noClicks() });
 }
@@ -67,6 +74,10 @@ export function setReady(ready) {
 
 export function setPairInProgress(inProgress) {
   state.pairInProgress = inProgress;
+}
+
+export function setShapeNames(shapes) {
+  state.shapeNames = new Map(shapes.map((shape) => [shape.id, shape.name]));
 }
 
 export function chooseTarget() {
@@ -129,6 +140,34 @@ export function recordEdit(kind, curve, position) {
 /** The newest edit was undone. */
 export function dropNewestEdit() {
   state.history.pop();
+}
+
+// -- collections and guided clicking -------------------------------------------------------------------------
+export function setCollection(view) {
+  state.collection = view;
+  if (state.guide && state.guide.collection !== view?.collection.id) state.guide = null;
+}
+
+export function setCurrentTemplateCurve(curveId) {
+  state.guide.current = curveId;
+}
+
+/** The member session's curve answering template curve ``templateId``, or undefined. */
+export function answerOf(templateId) {
+  return state.session.curves.find((curve) => curve.spec.template_curve === templateId);
+}
+
+/** The guided collection's template curves ({ id, name, path, answer: the member's curve or undefined }); none
+ * when no member is guided. */
+export function templateCurves() {
+  if (!state.guide || !state.collection) return [];
+  return state.collection.collection.curves.map((curve) => ({ ...curve, answer: answerOf(curve.id) }));
+}
+
+/** Target clicks answer the current template curve: a member is guided, a template curve is current, and no
+ * source point was clicked (a click on the source first starts an extra curve, entered on both sides). */
+export function answeringTemplate() {
+  return Boolean(state.guide?.current) && state.pending.points.source.length === 0;
 }
 
 // -- what the surfaces show ----------------------------------------------------------------------------------

@@ -1,6 +1,7 @@
 // What clicks on the shapes and the Curves panel do: enter a curve pair point by point, then add it; delete,
 // re-trace or select a listed curve; undo; cancel the clicks so far (also Escape).
 import {
+  answeringTemplate,
   clearPending,
   clickPending,
   dropNewestEdit,
@@ -14,6 +15,7 @@ import { showCurves, showPending, showTracing } from "../views/curves.js";
 import { pluginChoice } from "../views/forms.js";
 import { chooseRegion } from "./display.js";
 import { edits, runEdit } from "./edits.js";
+import { answerTemplateCurve } from "./guide.js";
 
 /** A click on a vertex of one shape (internal id): a point of the curve being entered, or the region's centre. */
 export function pickVertex(side, vertex, event) {
@@ -22,12 +24,15 @@ export function pickVertex(side, vertex, event) {
     if (side === "source") chooseRegion(vertex, event.timeStamp);
     return;
   }
+  const answering = answeringTemplate();
   clickPending(side, vertex, event.shiftKey);
-  if (pendingComplete()) addCurve(event.timeStamp);
+  if (answering && side === "target" && state.pending.closed.target) answerTemplateCurve(event.timeStamp);
+  else if (pendingComplete()) addCurve(event.timeStamp);
   else showPending([side]);
 }
 
-function tracerChoice() {
+/** The chosen tracer and its parameters, as a curve spec names them. */
+export function tracerChoice() {
   const { name, params } = pluginChoice("tracer");
   return { tracer: name, tracer_params: params };
 }

@@ -1,11 +1,21 @@
 // Curve edits sent to the service. Each keeps the local session record in step with the service's answer;
 // runEdit shows an edit and times it from the click to the frame that shows the new texture.
 import { api } from "../api.js";
-import { curveAdded, curveRemoved, curveReplaced, recordSample, setMap, setRevision, state } from "../store.js";
+import {
+  answerOf,
+  curveAdded,
+  curveRemoved,
+  curveReplaced,
+  recordSample,
+  setMap,
+  setRevision,
+  state,
+} from "../store.js";
 import { showCurves, showPending } from "../views/curves.js";
 import { report } from "../views/messages.js";
 import { showMapChoice, showSessionEntry, showStatus } from "../views/page.js";
 import { paint, viewports } from "../views/viewports.js";
+import { refreshCollection } from "./collections.js";
 import { resync } from "./connection.js";
 import { carriedFunction } from "./feedback.js";
 import { refreshQuality } from "./quality.js";
@@ -26,6 +36,14 @@ export const edits = {
   async replace(curveId, spec) {
     const edit = await api.replaceCurve(state.session.id, curveId, spec);
     curveReplaced(curveId, edit.curve);
+    return edit;
+  },
+  /** answer: { template_curve, target, tracer, tracer_params } on the guided member; replaces an earlier answer. */
+  async answer(answer) {
+    const previous = answerOf(answer.template_curve);
+    const edit = await api.answerCurve(state.guide.collection, state.guide.member, answer);
+    if (previous) curveReplaced(previous.id, edit.curve);
+    else curveAdded(edit.curve);
     return edit;
   },
 };
@@ -66,5 +84,6 @@ export async function runEdit(clickTime, kind, failure, perform) {
     if (error.kind === "not_found" || error.kind === "conflict") await resync();
   } finally {
     showStatus();
+    if (state.guide) refreshCollection(); // the member's progress in the Collections panel
   }
 }

@@ -3,7 +3,8 @@
 import { api } from "../api.js";
 import { diagonal, xyzValues } from "../functions.js";
 import { decodeMesh } from "../mesh.js";
-import { sessionOpened, sessionShared, setReady, state } from "../store.js";
+import { sessionOpened, sessionShared, setReady, setShapeNames, state } from "../store.js";
+import { showCollection, showMemberChoices } from "../views/collections.js";
 import { showCurves, showPending } from "../views/curves.js";
 import { $ } from "../views/dom.js";
 import { listJobFiles } from "../views/downloads.js";
@@ -27,17 +28,22 @@ export function chooseSession(id) {
   if (id) openSession(id);
 }
 
-/** Load the session (its id goes into the page's URL) and show it; state.ready once its first texture is drawn. */
-export async function openSession(id) {
+/** Load the session (its id goes into the page's URL, and a guided member's collection and id) and show it;
+ * state.ready once its first texture is drawn. guide: see state.guide. */
+export async function openSession(id, { guide = null } = {}) {
   const url = new URL(window.location.href);
   url.searchParams.set("session", id);
+  for (const key of ["collection", "member"]) {
+    if (guide) url.searchParams.set(key, guide[key]);
+    else url.searchParams.delete(key);
+  }
   window.history.replaceState(null, "", url);
   setReady(false);
   showLoading("Loading the session…");
   try {
     const session = await api.session(id);
     const [source, target] = await Promise.all(SIDES.map((side) => loadShape(session[side], side === "source")));
-    sessionOpened(session, { source, target });
+    sessionOpened(session, { source, target }, guide);
     listJobFiles($("downloads"), {});
     $("refine-progress").replaceChildren();
     showMapChoice();
@@ -54,6 +60,7 @@ export async function openSession(id) {
     showSessionTitle();
     showSharing();
     showStatus();
+    showCollection();
     refreshQuality();
     restoreRefinement();
   } catch (error) {
@@ -88,6 +95,8 @@ export async function shareSession(sharing) {
 /** Fetch the shapes and sessions and show them in the lists; resolves to { shapes, sessions }. */
 export async function refreshLists() {
   const [shapes, sessions] = await Promise.all([api.shapes(), api.sessions()]);
+  setShapeNames(shapes);
   showLists(shapes, sessions);
+  showMemberChoices(shapes);
   return { shapes, sessions };
 }

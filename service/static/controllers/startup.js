@@ -5,6 +5,8 @@ import { setPlugins, state } from "../store.js";
 import { showPlugins } from "../views/forms.js";
 import { report } from "../views/messages.js";
 import { openPairPanel, showLoading } from "../views/page.js";
+import { openCollection, refreshCollections } from "./collections.js";
+import { openMember } from "./guide.js";
 import { logIn } from "./login.js";
 import { openSession, refreshLists } from "./session.js";
 
@@ -17,14 +19,31 @@ export async function start() {
     setPlugins(await api.plugins());
     showPlugins("tracer");
     showPlugins("converter");
-    const { sessions } = await refreshLists();
-    const id = new URLSearchParams(window.location.search).get("session") ?? sessions[0]?.id;
+    showPlugins("converter", "run-converter");
+    const [{ sessions }] = await Promise.all([refreshLists(), refreshCollections()]);
+    const query = new URLSearchParams(window.location.search);
+    if (await openGuidedMember(query.get("collection"), query.get("member"))) return;
+    const id = query.get("session") ?? sessions[0]?.id;
     if (id) await openSession(id);
     else await waitForFirstSession();
   } catch (error) {
     report(error, "The UI could not start");
     showLoading(`The UI could not start: ${error.message}`);
   }
+}
+
+/** The member named in the page's URL, guided (the page was reloaded); resolves to whether it opened. */
+async function openGuidedMember(collection, member) {
+  if (!collection) return false;
+  try {
+    await openCollection(collection);
+  } catch (error) {
+    report(error, `Collection ${collection} could not be opened`);
+    return false;
+  }
+  if (!member || !state.collection.members.some((m) => m.id === member)) return false;
+  await openMember(member);
+  return true;
 }
 
 /** No session yet: poll until one appears, unless the user starts a pair of their own meanwhile (or logs out). The

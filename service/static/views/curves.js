@@ -1,6 +1,7 @@
 // Curves as drawn: tubes on both viewports, the list in the Curves panel, the markers of the curve being clicked
 // and the hint that says what to click next.
-import { pendingEmpty, state } from "../store.js";
+import { answeringTemplate, pendingEmpty, state, templateCurves } from "../store.js";
+import { showGuide, showTemplateButton } from "./collections.js";
 import { $ } from "./dom.js";
 import { SIDES, viewports } from "./viewports.js";
 
@@ -15,23 +16,43 @@ export function curveColor(curveId) {
 }
 
 /** The session's curves: tubes on both shapes (the selected one thicker), the list, and the buttons that need
- * curves or edits. */
+ * curves or edits. On a guided member the source also shows the template curves not answered yet, and the
+ * current template curve is drawn thicker. */
 export function showCurves() {
   const { curves } = state.session;
+  const current = state.guide?.current;
   for (const side of SIDES) {
     const { mesh } = state.shapes[side];
-    viewports[side].setCurves(
-      curves.map((curve) => ({
-        key: `${curve.id}:${curve.tracer}:${curve[`path_${side}`].length}`,
-        color: curveColor(curve.id),
-        path: curve[`path_${side}`].map((id) => mesh.fileToInternal[id]),
-        emphasis: curve.id === state.selected,
-      })),
-    );
+    const tubes = curves.map((curve) => ({
+      key: `${curve.id}:${curve.tracer}:${curve[`path_${side}`].length}`,
+      color: curveColor(colorId(curve)),
+      path: curve[`path_${side}`].map((id) => mesh.fileToInternal[id]),
+      emphasis: curve.id === state.selected || Boolean(current && curve.spec.template_curve === current),
+    }));
+    if (side === "source") tubes.push(...unansweredTemplateTubes(mesh, current));
+    viewports[side].setCurves(tubes);
   }
   renderCurveList($("curve-list"), curves, state.selected);
   $("undo-button").disabled = state.history.length === 0;
   $("refine-button").disabled = curves.length === 0;
+  showTemplateButton();
+  showGuide();
+}
+
+/** A curve answering a template curve takes the template curve's colour, on every member alike. */
+function colorId(curve) {
+  return curve.spec.template_curve ?? curve.id;
+}
+
+function unansweredTemplateTubes(mesh, current) {
+  return templateCurves()
+    .filter((curve) => !curve.answer)
+    .map((curve) => ({
+      key: `template:${curve.id}`,
+      color: curveColor(curve.id),
+      path: curve.path.map((id) => mesh.fileToInternal[id]),
+      emphasis: curve.id === current,
+    }));
 }
 
 /** The list of curves: colour, id, tracer, path lengths, and buttons (data-action retrace, delete). */
@@ -46,11 +67,12 @@ function renderCurveList(list, curves, selectedId) {
         `${curve.path_target.length} on the target. Click to select (drawn thicker).`;
       const swatch = document.createElement("span");
       swatch.className = "swatch";
-      swatch.style.background = curveColor(curve.id);
+      swatch.style.background = curveColor(colorId(curve));
       const label = document.createElement("span");
       label.className = "curve-label";
       const [onSource, onTarget] = [curve.path_source.length, curve.path_target.length];
-      label.textContent = `${curve.id} · ${curve.tracer} · ${onSource}/${onTarget} v`;
+      const answers = curve.spec.template_curve ? ` → ${curve.spec.template_curve}` : "";
+      label.textContent = `${curve.id}${answers} · ${curve.tracer} · ${onSource}/${onTarget} v`;
       label.title = `${curve.id}, traced by ${curve.tracer}: ${onSource} vertices on the source / ${onTarget} on the target`;
       const retrace = button("↻", "re-trace with the tracer chosen above", "retrace");
       item.append(swatch, label, retrace, button("✕", "delete", "delete"));
@@ -70,12 +92,23 @@ function button(text, title, action) {
   return element;
 }
 
-/** Markers of the clicks so far (redrawing only the given sides), the hint, the cancel button. */
+/** Markers of the clicks so far (redrawing only the given sides; on a guided member the start of the current
+ * template curve is marked on the source), the hint, the cancel button. */
 export function showPending(sides = SIDES) {
-  const color = curveColor(`c${state.session?.next_curve ?? 1}`);
-  for (const side of sides) viewports[side].setMarkers(state.pending.points[side].map((vertex) => ({ vertex, color })));
+  const color = answeringTemplate() ? curveColor(state.guide.current) : curveColor(`c${state.session?.next_curve ?? 1}`);
+  for (const side of sides) {
+    const markers = state.pending.points[side].map((vertex) => ({ vertex, color }));
+    if (side === "source" && answeringTemplate()) markers.push(templateStart(state.guide.current));
+    viewports[side].setMarkers(markers);
+  }
   $("hint").textContent = state.pickingRegion ? "Click the source to choose the region." : pendingHint();
   $("cancel-pending").disabled = pendingEmpty();
+  showGuide();
+}
+
+function templateStart(curveId) {
+  const curve = templateCurves().find((c) => c.id === curveId);
+  return { vertex: state.shapes.source.mesh.fileToInternal[curve.path[0]], color: curveColor(curveId) };
 }
 
 /** The hint while a finished curve is being traced (showPending replaces it). */
@@ -83,8 +116,12 @@ export function showTracing() {
   $("hint").textContent = "Tracing…";
 }
 
-/** What to click next. */
-function pendingHint() {
+/** What to click next: on a guided member, the prompt for the current template curve. */
+export function pendingHint() {
+  if (answeringTemplate()) return templatePrompt();
+  if (state.guide && pendingEmpty()) {
+    return "No template curve is current: pick one in the Collections panel, or click source then target for an extra curve.";
+  }
   const { points, closed } = state.pending;
   for (const side of SIDES) {
     const count = points[side].length;
@@ -96,4 +133,14 @@ function pendingHint() {
     return `Click the end on the ${side}; Shift+click adds a waypoint (${count} so far).`;
   }
   return "";
+}
+
+/** "t2 'spine': click its start on the member" (or its end, with the waypoints so far). */
+function templatePrompt() {
+  const curve = templateCurves().find((c) => c.id === state.guide.current);
+  const name = `${curve.id}${curve.name ? ` '${curve.name}'` : ""}`;
+  const again = curve.answer ? " (answered: this replaces it)" : "";
+  const count = state.pending.points.target.length;
+  if (count === 0) return `${name}: click its start on the member (the ball on the template marks it)${again}.`;
+  return `${name}: click its end on the member; Shift+click adds a waypoint (${count} so far)${again}.`;
 }

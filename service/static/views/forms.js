@@ -1,28 +1,29 @@
 // The plugin choices (Tracer, Converter): a select of the plugins of a kind (GET /plugins, in the store) and a
 // parameter form generated from the chosen one's JSON schema (numbers, integers, enums, booleans, strings). The
 // service validates again; this only offers the right inputs with their defaults. Kinds: "tracer" and
-// "converter", whose controls are #<kind>-select and #<kind>-params.
+// "converter", whose controls are #<controls>-select and #<controls>-params (controls: the kind itself, unless a
+// second choice of the kind names its own, as the Collections panel's "run-converter").
 import { state } from "../store.js";
 import { $ } from "./dom.js";
 
 const PREFERRED = ["geodesic", "nearest-neighbor"];
 
 /** Fill the select of a kind with its plugins (choosing a preferred one) and show the chosen one's form. */
-export function showPlugins(kind) {
-  const select = $(`${kind}-select`);
+export function showPlugins(kind, controls = kind) {
+  const select = $(`${controls}-select`);
   const plugins = state.plugins[kind];
   select.replaceChildren(...plugins.map((p) => Object.assign(new Option(p.name, p.name), { title: p.description })));
   const preferred = plugins.find((p) => PREFERRED.includes(p.name));
   if (preferred) select.value = preferred.name;
-  showParameters(kind);
+  showParameters(kind, controls);
 }
 
 /** The form of the chosen plugin: one input per schema property, with a readable label, its current value (the
  * default until changed) and what it means. A nested parameter set (e.g. rhm's zoomout start) keeps its defaults. */
-export function showParameters(kind) {
-  const container = $(`${kind}-params`);
+export function showParameters(kind, controls = kind) {
+  const container = $(`${controls}-params`);
   container.replaceChildren();
-  const properties = Object.entries(chosenSchema(kind)?.properties ?? {});
+  const properties = Object.entries(chosenSchema(kind, controls)?.properties ?? {});
   for (const [name, property] of properties) {
     const field = document.createElement("label");
     field.title = property.description ?? "";
@@ -57,11 +58,11 @@ function valueSchema(property) {
 }
 
 /** The chosen plugin of a kind and its parameters as the form says: { name, params }. */
-export function pluginChoice(kind) {
-  const name = $(`${kind}-select`).value;
+export function pluginChoice(kind, controls = kind) {
+  const name = $(`${controls}-select`).value;
   const params = {};
-  const inputs = $(`${kind}-params`).querySelectorAll("input, select");
-  for (const [propertyName, property] of Object.entries(chosenSchema(kind)?.properties ?? {})) {
+  const inputs = $(`${controls}-params`).querySelectorAll("input, select");
+  for (const [propertyName, property] of Object.entries(chosenSchema(kind, controls)?.properties ?? {})) {
     const input = [...inputs].find((element) => element.name === propertyName);
     const value = input && valueOf(input, valueSchema(property));
     if (value !== undefined) params[propertyName] = value;
@@ -69,8 +70,8 @@ export function pluginChoice(kind) {
   return { name, params };
 }
 
-function chosenSchema(kind) {
-  return state.plugins[kind].find((p) => p.name === $(`${kind}-select`).value)?.parameters;
+function chosenSchema(kind, controls) {
+  return state.plugins[kind].find((p) => p.name === $(`${controls}-select`).value)?.parameters;
 }
 
 function inputFor(property) {
