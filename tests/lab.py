@@ -63,6 +63,21 @@ class Lab:
         job = client.post(f"/sessions/{session_id}/refine", json={"converter": "nearest-neighbor"})
         return self.wait_job(client, job.raise_for_status().json()["id"])
 
+    def new_collection(self, client: httpx.Client, session_id: str) -> str:
+        """A private collection on the session's source, its curves the template curves, its target member m1."""
+        body = {"template": self.shapes[0], "from_session": session_id}
+        return client.post("/collections", json=body).raise_for_status().json()["collection"]["id"]
+
+    def finished_run(self, client: httpx.Client, collection_id: str, timeout: float = 120) -> str:
+        """The id of a nearest-neighbour run of every member of the collection, once it has finished."""
+        run = client.post(f"/collections/{collection_id}/runs", json={"converter": "nearest-neighbor"})
+        run_id = run.raise_for_status().json()["id"]
+        deadline = time.monotonic() + timeout
+        while (status := client.get(f"/collections/{collection_id}/runs/{run_id}").json())["state"] != "finished":
+            assert status["state"] not in ("failed", "canceled") and time.monotonic() < deadline, status
+            time.sleep(0.1)
+        return run_id
+
     @staticmethod
     def wait_job(client: httpx.Client, job_id: str, timeout: float = 120) -> dict:
         deadline = time.monotonic() + timeout

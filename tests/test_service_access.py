@@ -57,13 +57,16 @@ class Rule:
 
 @dataclass
 class World:
-    """What the requests name: the owner's private session with a curve and a finished refinement job."""
+    """What the requests name: the owner's private session with a curve and a finished refinement job, and the
+    owner's private collection made from that session (member m1, template curve t1) with a finished run."""
 
     lab: Lab
     session: str
     curve: str
     job: str
     file: str
+    collection: str = ""
+    run: str = ""
 
     def fresh_shape(self) -> str:
         return self.lab.new_shape()
@@ -74,9 +77,20 @@ class World:
     def fresh_curve(self) -> str:
         return self.lab.add_curve(self.lab.owner, self.session)
 
+    def fresh_collection(self) -> str:
+        return self.lab.new_collection(self.lab.owner, self.session)
+
 
 def session(world: World, **more) -> dict:
     return {"session_id": world.session, **more}
+
+
+def collection(world: World, **more) -> dict:
+    return {"collection_id": world.collection, **more}
+
+
+def run(world: World, **more) -> dict:
+    return collection(world, run_id=world.run, **more)
 
 
 RULES: dict[tuple[str, str], Rule] = {
@@ -120,6 +134,40 @@ RULES: dict[tuple[str, str], Rule] = {
     ("delete", "/jobs/{job_id}"): Rule(lambda w: Call({"job_id": w.job}), other=404, owner=409),
     ("post", "/jobs/{job_id}/retry"): Rule(lambda w: Call({"job_id": w.job}), other=404, owner=409),
     ("get", "/jobs/{job_id}/files/{name}"): Rule(lambda w: Call({"job_id": w.job, "name": w.file}), other=404),
+    ("get", "/collections"): Rule(lambda w: Call()),
+    ("post", "/collections"): Rule(
+        lambda w: Call(json={"template": w.lab.shapes[0], "curves": [{"waypoints": CURVE["source"]}], "k": K})
+    ),
+    ("get", "/collections/{collection_id}"): Rule(lambda w: Call(collection(w)), other=404),
+    ("patch", "/collections/{collection_id}"): Rule(
+        lambda w: Call(collection(w), json={"sharing": "private"}), other=404
+    ),
+    ("delete", "/collections/{collection_id}"): Rule(
+        lambda w: Call({"collection_id": w.fresh_collection()}), other=404
+    ),
+    ("post", "/collections/{collection_id}/members"): Rule(
+        lambda w: Call(collection(w), json={"shapes": [w.fresh_shape()]}), other=404
+    ),
+    ("post", "/collections/{collection_id}/members/upload"): Rule(
+        lambda w: Call(collection(w), files={"files": ("e.off", off_bytes(ellipsoid(6, 12)))}), other=404
+    ),
+    ("post", "/collections/{collection_id}/members/{member_id}/curves"): Rule(
+        lambda w: Call(collection(w, member_id="m1"), json={"template_curve": "t1", "target": CURVE["target"]}),
+        other=404,
+    ),
+    ("post", "/collections/{collection_id}/runs"): Rule(
+        lambda w: Call(collection(w), json={"converter": "nearest-neighbor", "members": ["m1"]}), other=404
+    ),
+    ("get", "/collections/{collection_id}/runs/{run_id}"): Rule(lambda w: Call(run(w)), other=404),
+    ("get", "/collections/{collection_id}/runs/{run_id}/archive.{kind}"): Rule(
+        lambda w: Call(run(w, kind="npz")), other=404
+    ),
+    ("get", "/collections/{collection_id}/runs/{run_id}/members/{member_id}"): Rule(
+        lambda w: Call(run(w, member_id="m1")), other=404
+    ),
+    ("get", "/collections/{collection_id}/runs/{run_id}/members/{a}/to/{b}"): Rule(
+        lambda w: Call(run(w, a="m1", b="m1")), other=404
+    ),
 }
 PUBLIC_PATHS = {path for (_, path), rule in RULES.items() if rule.public} | {
     # the answers when an npm package is not installed (service/ui.py)
@@ -133,7 +181,9 @@ def world(module_processes, tmp_path_factory) -> World:
     session_id = lab.new_session()
     curve = lab.add_curve(lab.owner, session_id)
     job = lab.refined(lab.owner, session_id)
-    return World(lab, session_id, curve, job["id"], "map_target_to_source.txt")
+    collection_id = lab.new_collection(lab.owner, session_id)
+    run_id = lab.finished_run(lab.owner, collection_id)
+    return World(lab, session_id, curve, job["id"], "map_target_to_source.txt", collection_id, run_id)
 
 
 def schema_routes(world: World) -> set[tuple[str, str]]:
