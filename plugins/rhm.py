@@ -21,6 +21,11 @@ changes by less than ``tol`` (relative) over five iterations.
 The user's curves stay pinned (:class:`~curvefm.pointwise.CurvePins`): after every projection the vertices
 of each curve map onto its partner curve (the exact vertex, also with triangle projection).
 
+Big meshes: every iteration factorises a sparse system of the mesh's size, so above ``dense_up_to`` vertices
+RHM runs on decimated copies of both shapes (``coarse_vertices``, quadric decimation) and the result reaches
+every vertex through functional maps fitted on the coarse vertices' nearest vertices, converted once in
+the embedding of both maps (:func:`coarse_reversible_harmonic_maps`).
+
 Deviations (errors: mean geodesic error / sqrt(area), 10 curves, from benchmarks/bench_converters.py):
 
 * Start: by default from ``zoomout``'s maps rather than the nearest-neighbour ones. RHM keeps the start's
@@ -48,14 +53,19 @@ from scipy.sparse.linalg import splu
 from scipy.spatial import cKDTree
 
 from curvefm.fmap import FunctionalMaps
-from curvefm.geometry import Mesh, cotangent_laplacian
+from curvefm.geometry import Mesh, build_mesh, cotangent_laplacian, decimate
 from curvefm.plugins.zoomout import ZoomOutParams, convert_zoomout, zoomout_basis_size
 from curvefm.pointwise import (
+    DENSE_UP_TO,
     CurvePins,
     PointwiseMaps,
+    Search,
+    VertexRows,
     closest_points,
+    fit_fmap,
     geodesic_embedding,
     initial_maps,
+    match_rows,
     no_pins,
     unit_area,
 )
@@ -64,6 +74,7 @@ from curvefm.registry import ConverterPlugin
 from curvefm.spectral import ShapePair
 
 ENERGY_WINDOW = 5  # iterations over which the energy change is measured
+COARSE_VERTICES = 5_000  # vertices of the decimated copies RHM iterates on above dense_up_to
 
 
 class RhmParams(BaseModel):
@@ -87,6 +98,17 @@ class RhmParams(BaseModel):
     projection: Literal["vertex", "triangle"] = Field(
         "vertex", description="map each vertex to the closest vertex (fast) or closest point on a triangle"
     )
+    dense_up_to: int = Field(
+        DENSE_UP_TO,
+        ge=0,
+        le=10**9,
+        description="shapes with more vertices than this are refined on decimated copies of coarse_vertices "
+        "vertices, and every vertex is matched once at the end",
+    )
+    coarse_vertices: int = Field(
+        COARSE_VERTICES, ge=200, le=10**6, description="vertices of the decimated copies (above dense_up_to)"
+    )
+    search: Search = Field("auto", description="nearest-neighbour search of the last, dense conversion")
 
     @model_validator(mode="after")
     def _consistent(self):
@@ -210,12 +232,61 @@ def convert_rhm(
     else:
         progress(0.0, "initial maps (nearest neighbours)")
         maps = initial_maps(pair, fmaps)
+    if max(pair.mesh_M.n_vertices, pair.mesh_N.n_vertices) > params.dense_up_to:
+        return coarse_reversible_harmonic_maps(pair, maps, params, scaled(progress, 0.3, 1.0), curves)
     progress(0.3, "geodesic embedding of the source")
     shape_M = prepare_shape(pair.mesh_M, params)
     progress(0.35, "geodesic embedding of the target")
     shape_N = prepare_shape(pair.mesh_N, params)
     pins = CurvePins.from_curves(pair.mesh_M, pair.mesh_N, curves)
     return reversible_harmonic_maps(maps, shape_M, shape_N, params, scaled(progress, 0.4, 1.0), pins)
+
+
+@dataclass(frozen=True)
+class _Coarse:
+    """A decimated copy of a mesh: ``fine_ids[c]`` is the vertex of the mesh nearest coarse vertex c, and
+    ``coarse_ids[v]`` the coarse vertex nearest vertex v of the mesh."""
+
+    mesh: Mesh
+    fine_ids: np.ndarray
+    coarse_ids: np.ndarray
+
+    @classmethod
+    def of(cls, mesh: Mesh, vertex_count: int) -> _Coarse:
+        coarse = build_mesh(*decimate(mesh.vertices, mesh.faces, vertex_count), name=f"{mesh.name}-coarse")
+        fine_ids = cKDTree(mesh.vertices).query(coarse.vertices)[1]
+        return cls(coarse, fine_ids, cKDTree(coarse.vertices).query(mesh.vertices)[1])
+
+    def path(self, fine_path: np.ndarray) -> np.ndarray:
+        """A curve's vertex path on the coarse copy (nearest coarse vertices, repeats dropped)."""
+        path = self.coarse_ids[np.asarray(fine_path, dtype=np.int64)]
+        return path[np.r_[True, path[1:] != path[:-1]]]
+
+
+def coarse_reversible_harmonic_maps(
+    pair: ShapePair, maps: PointwiseMaps, params: RhmParams, progress: Progress = no_progress, curves=()
+) -> PointwiseMaps:
+    """RHM on decimated copies of both shapes, from ``maps`` carried to them, then one dense conversion: the
+    functional maps (k up to ``init_zoomout.k_final``) fitted on the coarse vertices' nearest vertices, and
+    every vertex matched in the embedding of both (as ZoomOut's last step), curves pinned."""
+    progress(0.0, f"decimating both shapes to about {params.coarse_vertices} vertices")
+    M, N = _Coarse.of(pair.mesh_M, params.coarse_vertices), _Coarse.of(pair.mesh_N, params.coarse_vertices)
+    start = PointwiseMaps(p2p_NM=M.coarse_ids[maps.p2p_NM[N.fine_ids]], p2p_MN=N.coarse_ids[maps.p2p_MN[M.fine_ids]])
+    pins = CurvePins.from_curves(M.mesh, N.mesh, [(M.path(path_M), N.path(path_N)) for path_M, path_N in curves])
+    progress(0.05, "geodesic embeddings of the decimated shapes")
+    shape_M, shape_N = prepare_shape(M.mesh, params), prepare_shape(N.mesh, params)
+    coarse = reversible_harmonic_maps(start, shape_M, shape_N, params, scaled(progress, 0.1, 0.9), pins)
+    progress(0.9, "matching every vertex")
+    k = min(pair.basis_M.k, pair.basis_N.k, params.init_zoomout.k_final)
+    rows_M, rows_N = VertexRows(pair.basis_M, M.fine_ids), VertexRows(pair.basis_N, N.fine_ids)
+    C_MN = fit_fmap(M.fine_ids[coarse.p2p_NM], rows_N, rows_M, k)
+    C_NM = fit_fmap(N.fine_ids[coarse.p2p_MN], rows_M, rows_N, k)
+    every_M, every_N = VertexRows(pair.basis_M), VertexRows(pair.basis_N)
+    fine_pins = CurvePins.from_curves(pair.mesh_M, pair.mesh_N, curves)
+    return PointwiseMaps(
+        p2p_NM=fine_pins.pin_NM(match_rows(C_MN, every_N, every_M, params.search, C_NM)),
+        p2p_MN=fine_pins.pin_MN(match_rows(C_NM, every_M, every_N, params.search, C_MN)),
+    )
 
 
 def rhm_basis_size(params: RhmParams) -> int:

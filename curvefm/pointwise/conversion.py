@@ -23,7 +23,7 @@ class PointwiseMaps:
 
 
 def pointwise_from_fmap(
-    C_MN: np.ndarray, basis_M: Basis, basis_N: Basis, search: str = "faiss", rows: np.ndarray | None = None
+    C_MN: np.ndarray, basis_M: Basis, basis_N: Basis, search: str = "auto", rows: np.ndarray | None = None
 ) -> np.ndarray:
     """``p2p_NM`` from ``C_MN`` alone: for each y of N the x of M minimising ``|C_MN Phi[x] - Psi[y]|``.
 
@@ -34,7 +34,7 @@ def pointwise_from_fmap(
 
 
 def pointwise_from_both(
-    C_MN: np.ndarray, C_NM: np.ndarray, basis_M: Basis, basis_N: Basis, search: str = "faiss"
+    C_MN: np.ndarray, C_NM: np.ndarray, basis_M: Basis, basis_N: Basis, search: str = "auto"
 ) -> np.ndarray:
     """``p2p_NM`` using both maps: for each y of N the x of M minimising
     ``|C_MN Phi[x] - Psi[y]|^2 + |Phi[x] - C_NM Psi[y]|^2``.

@@ -27,7 +27,7 @@ def unit_area(mesh: Mesh) -> Mesh:
     return dataclasses.replace(mesh, vertices=mesh.vertices / np.sqrt(mesh.area))
 
 
-def initial_maps(pair: ShapePair, maps: FunctionalMaps, search: str = "faiss") -> PointwiseMaps:
+def initial_maps(pair: ShapePair, maps: FunctionalMaps, search: str = "auto") -> PointwiseMaps:
     """The ``nearest-neighbor`` converter's maps (both functional maps at once), where refinement starts."""
     M, N = pair.basis_M, pair.basis_N
     return PointwiseMaps(
@@ -54,5 +54,6 @@ def _basis_with(basis: Basis, mesh: Mesh, k: int, progress: Progress) -> Basis:
 
 
 def spread_samples(mesh: Mesh, count: int) -> np.ndarray:
-    """``count`` (at most every) vertices spread by geodesic farthest-point sampling, from vertex 0."""
-    return farthest_point_sampling(mesh, min(count, mesh.n_vertices))
+    """``count`` (at most every) vertices spread by farthest-point sampling along edges, from vertex 0
+    (without the face diagonals: 4,000 samples of 110k vertices in 1.8 s instead of 10 s)."""
+    return farthest_point_sampling(mesh, min(count, mesh.n_vertices), diagonals=False)
