@@ -54,6 +54,7 @@ SCAN_CONVERTERS = [
     ("zoomout", {}),
     ("icp", EVERY_VERTEX),
     ("icp", {}),
+    ("rhm", EVERY_VERTEX | {"init_zoomout": EVERY_VERTEX}),
     ("rhm", {}),
 ]
 VARIANTS = [

@@ -3,7 +3,7 @@ vertex ids), validation, one reader/writer per file format, Laplace-Beltrami ope
 geodesic distances, farthest-point sampling, decimation and texture coordinates.
 """
 
-from curvefm.geometry.decimation import decimate
+from curvefm.geometry.decimation import closest_point_weights, decimate
 from curvefm.geometry.geodesics import (
     DEFAULT_CHUNK_BYTES,
     checked_ids,
@@ -38,6 +38,7 @@ __all__ = [
     "check_edge_path",
     "checkerboard_image",
     "checked_ids",
+    "closest_point_weights",
     "cotangent_laplacian",
     "decimate",
     "cylindrical_uv",

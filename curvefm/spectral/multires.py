@@ -19,7 +19,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from curvefm.geometry import decimate
+from curvefm.geometry import closest_point_weights, decimate
 from curvefm.spectral.eigensolver import SIGMA, shifted_factor, smallest_eigenpairs
 
 COARSE_VERTICES = 8_000
@@ -57,21 +57,8 @@ def prolongation(vertices: np.ndarray, faces: np.ndarray, coarse_vertices: int) 
     """``P`` (n x n_coarse): row i holds the barycentric weights of vertex i's closest point on a decimated
     copy of the mesh, so the columns are the coarse mesh's hat functions seen from the full one. Coarse
     vertices that no row uses are dropped, so the coarse mass stays positive."""
-    import open3d as o3d  # loaded by decimate already
-
     coarse_points, coarse_faces = decimate(vertices, faces, coarse_vertices)
-    scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(
-        o3d.core.Tensor(coarse_points.astype(np.float32)), o3d.core.Tensor(coarse_faces.astype(np.uint32))
-    )
-    closest = scene.compute_closest_points(o3d.core.Tensor(vertices.astype(np.float32)))
-    corners = coarse_faces[closest["primitive_ids"].numpy().astype(np.int64)]
-    u, v = closest["primitive_uvs"].numpy().astype(float).T
-    weights = np.clip(np.stack([1.0 - u - v, u, v], axis=1), 0.0, 1.0)
-    weights /= weights.sum(axis=1, keepdims=True)
-    rows = np.repeat(np.arange(len(vertices)), 3)
-    shape = (len(vertices), len(coarse_points))
-    matrix = sp.csr_matrix((weights.ravel(), (rows, corners.ravel())), shape=shape)
+    matrix = closest_point_weights(vertices, coarse_points, coarse_faces)
     return matrix[:, np.flatnonzero(np.asarray(matrix.sum(axis=0)).ravel() > 0)].tocsr()
 
 
