@@ -207,21 +207,9 @@ def reversible_harmonic_maps(
     params: RhmParams,
     progress: Progress = no_progress,
     pins: CurvePins | None = None,
-) -> PointwiseMaps:
-    """Alternating minimisation from the pointwise maps ``maps``, keeping ``pins`` fixed."""
-    MN, NM, _ = alternate(maps, shape_M, shape_N, params, progress, pins)
-    return PointwiseMaps(p2p_NM=NM.p2p, p2p_MN=MN.p2p)
-
-
-def alternate(
-    maps: PointwiseMaps,
-    shape_M: _Shape,
-    shape_N: _Shape,
-    params: RhmParams,
-    progress: Progress = no_progress,
-    pins: CurvePins | None = None,
 ) -> tuple[_Map, _Map, float]:
-    """The iterations of :func:`reversible_harmonic_maps`: both maps as they end, and the last coupling weight."""
+    """Alternating minimisation from the pointwise maps ``maps``, keeping ``pins`` fixed: both maps as they end
+    (``MN.p2p`` is ``p2p_MN``), and the last coupling weight."""
     pins = pins or no_pins(len(shape_M.X), len(shape_N.X))
     p2p_MN, p2p_NM = pins.pin_MN(maps.p2p_MN), pins.pin_NM(maps.p2p_NM)
     P_MN, P_NM = vertex_rows(p2p_MN, len(shape_N.X)), vertex_rows(p2p_NM, len(shape_M.X))
@@ -256,7 +244,8 @@ def convert_rhm(
     progress(0.35, "geodesic embedding of the target")
     shape_N = prepare_shape(pair.mesh_N, params)
     pins = CurvePins.from_curves(pair.mesh_M, pair.mesh_N, curves)
-    return reversible_harmonic_maps(maps, shape_M, shape_N, params, scaled(progress, 0.4, 1.0), pins)
+    MN, NM, _ = reversible_harmonic_maps(maps, shape_M, shape_N, params, scaled(progress, 0.4, 1.0), pins)
+    return PointwiseMaps(p2p_NM=NM.p2p, p2p_MN=MN.p2p)
 
 
 @dataclass(frozen=True)
@@ -295,7 +284,7 @@ def coarse_reversible_harmonic_maps(
     pins = CurvePins.from_curves(M.mesh, N.mesh, [(M.path(path_M), N.path(path_N)) for path_M, path_N in curves])
     progress(0.05, "geodesic embeddings of the decimated shapes")
     shape_M, shape_N = prepare_shape(M.mesh, params), prepare_shape(N.mesh, params)
-    MN, NM, beta = alternate(start, shape_M, shape_N, params, scaled(progress, 0.1, 0.95), pins)
+    MN, NM, beta = reversible_harmonic_maps(start, shape_M, shape_N, params, scaled(progress, 0.1, 0.95), pins)
     progress(0.95, "projecting every vertex")
     X_M, X_N, X_MN, X_NM = M.prolong @ shape_M.X, N.prolong @ shape_N.X, M.prolong @ MN.X, N.prolong @ NM.X
     fine_pins = CurvePins.from_curves(pair.mesh_M, pair.mesh_N, curves)
