@@ -78,12 +78,12 @@ def icp(
     pins: CurvePins | None = None,
 ) -> PointwiseMaps:
     """ICP from pointwise maps, on every vertex or on ``samples`` ``(ids_M, ids_N)`` with one conversion of
-    every vertex at the end; ``pins`` fix the partners of the curves' vertices after every conversion."""
+    every vertex at the end (``maps`` then hold one entry per sample); ``pins`` fix the partners of the
+    curves' vertices after every conversion."""
     ids_M, ids_N = samples if samples is not None else (None, None)
     rows_M, rows_N = VertexRows(basis_M, ids_M), VertexRows(basis_N, ids_N)
     pins = pins or no_pins(basis_M.n_vertices, basis_N.n_vertices)
-    p_NM = pins.pin_NM(maps.p2p_NM[rows_N.ids], rows_N.subset)
-    p_MN = pins.pin_MN(maps.p2p_MN[rows_M.ids], rows_M.subset)
+    p_NM, p_MN = pins.pin_NM(maps.p2p_NM, rows_N.subset), pins.pin_MN(maps.p2p_MN, rows_M.subset)
     for it in range(params.iterations):
         progress(it / params.iterations, f"ICP iteration {it + 1} of at most {params.iterations}")
         C_MN, C_NM = orthogonal_fmap(p_NM, rows_N, rows_M, params), orthogonal_fmap(p_MN, rows_M, rows_N, params)
@@ -107,10 +107,11 @@ def icp(
 def convert_icp(
     pair: ShapePair, fmaps: FunctionalMaps, params: IcpParams, progress: Progress = no_progress, curves=()
 ) -> PointwiseMaps:
-    progress(0.0, "initial maps (nearest neighbours)")
-    maps = initial_maps(pair, fmaps, params.search)
-    basis_M, basis_N = bases_with(pair, params.k_image, scaled(progress, 0.05, 0.1))
+    progress(0.0, "choosing the vertices to iterate on")
     samples = refinement_samples(pair.mesh_M, pair.mesh_N, params.samples, params.dense_up_to)
+    progress(0.05, "initial maps (nearest neighbours)")
+    maps = initial_maps(pair, fmaps, params.search, samples)
+    basis_M, basis_N = bases_with(pair, params.k_image, scaled(progress, 0.05, 0.1))
     pins = CurvePins.from_curves(pair.mesh_M, pair.mesh_N, curves)
     return icp(maps, basis_M, basis_N, params, samples, scaled(progress, 0.1, 1.0), pins)
 

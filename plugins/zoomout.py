@@ -69,13 +69,13 @@ def zoomout(
     progress: Progress = no_progress,
     pins: CurvePins | None = None,
 ) -> PointwiseMaps:
-    """ZoomOut from pointwise maps. ``samples`` is ``(ids_M, ids_N)`` for the fast variant, else None;
+    """ZoomOut from pointwise maps. ``samples`` is ``(ids_M, ids_N)`` for the fast variant, else None; ``maps``
+    hold one entry per sample then (:func:`~curvefm.pointwise.initial_maps` with the samples), else per vertex.
     ``pins`` fix the partners of the curves' vertices after every conversion."""
     ids_M, ids_N = samples if samples is not None else (None, None)
     rows_M, rows_N = VertexRows(basis_M, ids_M), VertexRows(basis_N, ids_N)
     pins = pins or no_pins(basis_M.n_vertices, basis_N.n_vertices)
-    p_NM = pins.pin_NM(maps.p2p_NM[rows_N.ids], rows_N.subset)
-    p_MN = pins.pin_MN(maps.p2p_MN[rows_M.ids], rows_M.subset)
+    p_NM, p_MN = pins.pin_NM(maps.p2p_NM, rows_N.subset), pins.pin_MN(maps.p2p_MN, rows_M.subset)
     sizes = list(range(params.k_init, params.k_final, params.step)) + [params.k_final]
     for i, k in enumerate(sizes):
         progress(i / len(sizes), f"ZoomOut k = {k} (up to {params.k_final})")
@@ -92,11 +92,11 @@ def zoomout(
 def convert_zoomout(
     pair: ShapePair, fmaps: FunctionalMaps, params: ZoomOutParams, progress: Progress = no_progress, curves=()
 ) -> PointwiseMaps:
-    progress(0.0, "initial maps (nearest neighbours)")
-    maps = initial_maps(pair, fmaps, params.search)
-    basis_M, basis_N = bases_with(pair, params.k_final, scaled(progress, 0.05, 0.2))
-    progress(0.2, "choosing the vertices to iterate on")
+    progress(0.0, "choosing the vertices to iterate on")
     samples = refinement_samples(pair.mesh_M, pair.mesh_N, params.samples, params.dense_up_to)
+    progress(0.05, "initial maps (nearest neighbours)")
+    maps = initial_maps(pair, fmaps, params.search, samples)
+    basis_M, basis_N = bases_with(pair, params.k_final, scaled(progress, 0.1, 0.2))
     pins = CurvePins.from_curves(pair.mesh_M, pair.mesh_N, curves)
     return zoomout(maps, basis_M, basis_N, params, samples, scaled(progress, 0.25, 1.0), pins)
 

@@ -10,9 +10,10 @@ compares against the points of the ``nprobe`` nearest cells only. Spectral embed
 a two-dimensional manifold, so a few cells hold every near neighbour. Measured on FAUST subdivided to 28k /
 110k / 440k vertices in 20, 60 and 120 dimensions (``benchmarks/bench_neighbors.py``, 2026-11-23): 2 sqrt(n)
 cells and 8 probed give the exact nearest distance for >= 99.65% of queries, mean distance +4e-5 at most,
-4-150x faster than exact search (110k, 120 dimensions: 4.5 s against 47 s; faiss's exact search was 3-6x
-slower in 20 and 60 dimensions than in 120). HNSW (``IndexHNSWFlat``, 32 links) lost on these data: at
-efSearch 256 below 99% in 7 of the 9 cases (83-98%), and 2-5x slower than IVF.
+4-150x faster than exact search (110k, 120 dimensions: 4.5 s against 47 s; in 20 and 60 dimensions exact
+search is bound by memory traffic and its times varied up to 18x between runs). HNSW (``IndexHNSWFlat``, 32
+links) lost on these data: at efSearch 256 below 99% in 7 of the 9 cases (83-98%), and 1.4-4x slower than IVF
+at efSearch 64.
 
 Recall is measured against exact search by distance, not by index: float32 exact search expands
 ``|q - d|^2 = |q|^2 - 2 q.d + |d|^2``, and on subdivided meshes (near-duplicate embedding rows) it misses the
