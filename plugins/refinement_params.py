@@ -14,7 +14,7 @@ class SearchParams(BaseModel):
         "auto",
         description="nearest-neighbour search: 'exact' (faiss IndexFlatL2), 'blocked' (exact, numpy matrix "
         "products), 'approximate' (faiss inverted file, recall >= 99%), or 'auto': approximate from "
-        f"{APPROXIMATE_FROM_PAIRS:.0e} data rows x queries on",
+        f"{APPROXIMATE_FROM_PAIRS:,} data rows x queries on",
     )
 
 

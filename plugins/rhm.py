@@ -99,7 +99,7 @@ class RhmParams(BaseModel):
         ge=0,
         le=10**9,
         description="shapes with more vertices than this are refined on decimated copies of coarse_vertices "
-        "vertices, and every vertex is matched once at the end",
+        "vertices, and every vertex is projected once at the end",
     )
     coarse_vertices: int = Field(
         COARSE_VERTICES, ge=200, le=10**6, description="vertices of the decimated copies (above dense_up_to)"
