@@ -56,7 +56,6 @@ from curvefm.fmap import FunctionalMaps
 from curvefm.geometry import Mesh, build_mesh, closest_point_weights, cotangent_laplacian, decimate
 from curvefm.plugins.zoomout import ZoomOutParams, convert_zoomout, zoomout_basis_size
 from curvefm.pointwise import (
-    DENSE_UP_TO,
     CurvePins,
     PointwiseMaps,
     closest_points,
@@ -71,6 +70,9 @@ from curvefm.spectral import ShapePair
 
 ENERGY_WINDOW = 5  # iterations over which the energy change is measured
 COARSE_VERTICES = 5_000  # vertices of the decimated copies RHM iterates on above dense_up_to
+#: RHM on 5,000-vertex copies was as good as on every vertex on FAUST (0.0094 against 0.0092) and takes 19 s at
+#: 27.5k vertices, where every vertex would take minutes: a lower threshold than ZoomOut's and ICP's
+RHM_DENSE_UP_TO = 20_000
 
 
 class RhmParams(BaseModel):
@@ -95,7 +97,7 @@ class RhmParams(BaseModel):
         "vertex", description="map each vertex to the closest vertex (fast) or closest point on a triangle"
     )
     dense_up_to: int = Field(
-        DENSE_UP_TO,
+        RHM_DENSE_UP_TO,
         ge=0,
         le=10**9,
         description="shapes with more vertices than this are refined on decimated copies of coarse_vertices "
