@@ -12,7 +12,9 @@
   over. Exact search answers ``--recall-queries`` random queries (its time extrapolated linearly to all of
   them); the approximate searches answer every query, build included. ``id_recall``: the fraction of those
   queries given the same row as exact search; ``distance_recall``: given a row no farther (in float64, to
-  1e-6 relative) than exact search's; ``mean_distance_increase``: relative, over those queries.
+  1e-6 relative) than exact search's; ``mean_distance_increase``: relative, over those queries. With
+  ``--conversion``, also the embedding the ``nearest-neighbor`` converter searches (both maps, 240 dimensions)
+  for the maps ``match`` computes from 10 ground-truth curves.
 
 Methods for the first three: faiss ``IndexFlatL2``, blocked float32 matrix products, and scipy's
 ``cKDTree`` (built and queried on all cores). Where the tree would take minutes it answers a random subset of
@@ -20,7 +22,7 @@ the queries and the time is extrapolated linearly (``extrapolated_from`` says ho
 query of a tree search does not depend on how many queries there are. Times are medians in seconds.
 
     python benchmarks/bench_neighbors.py [--repeat 3] [--tree-queries 1000] [--sections spectral,zoomout,rhm,scan]
-        [--scan-levels 1,2,3] [--recall-queries 2000] [--hnsw]
+        [--scan-levels 1,2,3] [--recall-queries 2000] [--hnsw] [--conversion]
 """
 
 from __future__ import annotations
@@ -36,7 +38,7 @@ from bench_scan import subdivided
 from common import bench_store, machine, median_ms, shared_data
 from scipy.spatial import cKDTree
 
-from curvefm.evaluation import ground_truth_curves, ground_truth_for
+from curvefm.evaluation import GroundTruth, ground_truth_curves, ground_truth_for
 from curvefm.geometry import load_mesh
 from curvefm.matching import match
 from curvefm.plugins.rhm import RhmParams, prepare_shape
@@ -147,19 +149,36 @@ def exact_against_approximate(data: np.ndarray, queries: np.ndarray, rows: np.nd
     return entry
 
 
-def scan_case(store, level: int, dims: list[int], recall_queries: int, hnsw: bool) -> list[dict]:
-    """Exact against approximate search at one subdivision level, data ``Phi_k C^T`` and queries ``Psi_k``."""
+def scan_case(store, level: int, dims: list[int], recall_queries: int, hnsw: bool, conversion: bool) -> list[dict]:
+    """Exact against approximate search at one subdivision level, data ``Phi_k C^T`` and queries ``Psi_k``;
+    with ``conversion`` also the nearest-neighbor converter's embedding of both maps of a 10-curve match."""
     mesh_M, mesh_N = subdivided("tr_reg_000", level), subdivided("tr_reg_011", level)
     basis_M, basis_N = store.ensure_basis(mesh_M, max(dims)), store.ensure_basis(mesh_N, max(dims))
     count = min(recall_queries, mesh_N.n_vertices)
     rows = np.random.default_rng(0).choice(mesh_N.n_vertices, count, replace=False)
-    out = []
+    cases = []
     for k in dims:
         C_MN = fmap_from_pointwise(np.arange(mesh_N.n_vertices), basis_M, basis_N, k, k)
-        entry = exact_against_approximate(basis_M.evecs[:, :k] @ C_MN.T, basis_N.evecs[:, :k], rows, hnsw)
+        cases.append(("true map", basis_M.evecs[:, :k] @ C_MN.T, basis_N.evecs[:, :k]))
+    if conversion:
+        cases.append(("10-curve match, both maps", *conversion_embedding(store, mesh_M, mesh_N)))
+    out = []
+    for embedding, data, queries in cases:
+        entry = {"embedding": embedding} | exact_against_approximate(data, queries, rows, hnsw)
         print(json.dumps(entry), file=sys.stderr, flush=True)
         out.append(entry)
     return out
+
+
+def conversion_embedding(store, mesh_M, mesh_N) -> tuple[np.ndarray, np.ndarray]:
+    """Data ``[Phi C_MN^T, Phi]`` and queries ``[Psi, Psi C_NM^T]`` of the maps ``match`` computes with 10
+    ground-truth curves (the subdivided pair shares its vertices, so the identity is the truth)."""
+    ids = np.arange(mesh_M.n_vertices)
+    curves = ground_truth_curves(mesh_M, mesh_N, GroundTruth(ids, ids, "identity", True), 10)
+    result = match(mesh_M, mesh_N, curves, store=store)
+    k = result.fmaps.C_MN.shape[0]
+    Phi, Psi = result.pair.basis_M.evecs[:, :k], result.pair.basis_N.evecs[:, :k]
+    return np.hstack([Phi @ result.fmaps.C_MN.T, Phi]), np.hstack([Psi, Psi @ result.fmaps.C_NM.T])
 
 
 def main() -> None:
@@ -170,6 +189,7 @@ def main() -> None:
     parser.add_argument("--scan-levels", default="1,2,3", help="subdivision levels of the scan section")
     parser.add_argument("--recall-queries", type=int, default=2000, help="queries exact search answers in scan")
     parser.add_argument("--hnsw", action="store_true", help="also time faiss HNSW in the scan section")
+    parser.add_argument("--conversion", action="store_true", help="scan: also a 10-curve match's embedding")
     args = parser.parse_args()
     sections = args.sections.split(",")
     data, store = shared_data(), bench_store()
@@ -190,7 +210,7 @@ def main() -> None:
         report["scan"] = [
             entry
             for level in levels
-            for entry in scan_case(store, level, [20, 60, 120], args.recall_queries, args.hnsw)
+            for entry in scan_case(store, level, [20, 60, 120], args.recall_queries, args.hnsw, args.conversion)
         ]
     report["load_avg_1min_after"] = round(os.getloadavg()[0], 2)
     print(json.dumps(report, indent=2))
