@@ -6,21 +6,31 @@ mesh each map lands on), both directions. ``seconds`` is the converter alone (ba
 median of ``--repeat`` runs. ``worker`` runs ``rhm`` with its defaults on FAUST as a refinement job on the in-process
 queue (the same job function RQ workers run) and records the wall time and the progress reports seen.
 
-    python benchmarks/bench_converters.py [--repeat 1] [--variants]
+``--scan-level L`` (2: 110,210 vertices) also runs the refiners on FAUST tr_reg_000 -> 011 subdivided L times
+(benchmarks/bench_scan.py; the pair shares its connectivity, errors on the original 6,890 vertices), each on
+every vertex (``dense_up_to`` above the size) and with its default, which at that size iterates on samples
+(ZoomOut, ICP) or decimated copies (RHM) and matches every vertex once at the end. RHM is run with its default
+only: on every vertex of the 110k pair it took about 30 s an iteration (two factorisations of that size), so
+about an hour for the iterations it needs.
+
+    python benchmarks/bench_converters.py [--repeat 1] [--variants] [--scan-level 2] [--no-faust-and-cat]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import statistics
+import sys
 import time
 
 import numpy as np
+from bench_scan import PAIR, subdivided
 from common import bench_store, machine, shared_data
 
 from curvefm import registry
-from curvefm.evaluation import evaluate_map, ground_truth_curves, ground_truth_for, score
+from curvefm.evaluation import GroundTruth, evaluate_map, ground_truth_curves, ground_truth_for, score
 from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K, DEFAULT_SAMPLES
 from curvefm.geometry import load_mesh
 from curvefm.matching import MatchResult, match
@@ -38,6 +48,14 @@ CONVERTERS = [
     ("icp", {}),
     ("zoomout", {}),
     ("zoomout", {"samples": 2000}),
+    ("rhm", {}),
+]
+EVERY_VERTEX = {"dense_up_to": 10**9}
+SCAN_CONVERTERS = [
+    ("zoomout", EVERY_VERTEX),
+    ("zoomout", {}),
+    ("icp", EVERY_VERTEX),
+    ("icp", {}),
     ("rhm", {}),
 ]
 VARIANTS = [
@@ -113,15 +131,36 @@ def run_worker_job(store: Store, result: MatchResult, curves, truth) -> dict:
     return out | {"source_to_target": evaluate_map(p2p_MN, truth, mesh_N).mean_area}
 
 
+def scan_pair(level: int, repeat: int) -> dict:
+    """The refiners on the subdivided FAUST pair from its 10-curve maps (default method), every vertex against
+    the defaults."""
+    meshes = [subdivided(name, level) for name in PAIR]
+    original = np.arange(6890)
+    truth = GroundTruth(meshes[0].internal_ids(original), meshes[1].internal_ids(original), "identity", True)
+    curves = ground_truth_curves(meshes[0], meshes[1], truth, 10)
+    start = time.perf_counter()
+    result = match(meshes[0], meshes[1], curves, store=bench_store())
+    entry = {"vertices": meshes[0].n_vertices, "match_s": round(time.perf_counter() - start, 1)}
+    entry["start"] = {d: errors["mean_area"] for d, errors in score(result, truth).items()}
+    entry["converters"] = []
+    for name, params in SCAN_CONVERTERS:
+        entry["converters"].append(run_converter(result, truth, name, params, repeat))
+        print(json.dumps(entry["converters"][-1]), file=sys.stderr, flush=True)
+    return entry
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=1, help="runs per converter (median time)")
     parser.add_argument("--variants", action="store_true", help="also run non-default variants (slow: minutes)")
     parser.add_argument("--no-worker", action="store_true", help="skip the refinement job on the in-process queue")
+    parser.add_argument("--scan-level", type=int, default=None, help="also the subdivided FAUST pair (2: 110k)")
+    parser.add_argument("--no-faust-and-cat", action="store_true", help="skip the two 7k pairs")
     args = parser.parse_args()
     data, store = shared_data(), bench_store()
     report = {"machine": machine(), "curves": 10, "k": 120, "pairs": {}}
-    for pair, (source, target) in PAIRS.items():
+    report["machine"]["load_avg_1min_before"] = round(os.getloadavg()[0], 2)
+    for pair, (source, target) in ({} if args.no_faust_and_cat else PAIRS).items():
         mesh_M, mesh_N = load_mesh(data / source), load_mesh(data / target)
         truth = ground_truth_for(data / source, data / target, mesh_M, mesh_N)
         curves = ground_truth_curves(mesh_M, mesh_N, truth, 10)
@@ -133,6 +172,9 @@ def main() -> None:
         if not args.no_worker and pair == "faust_000_011":
             entry["worker"] = run_worker_job(store, result, curves, truth)
         report["pairs"][pair] = entry
+    if args.scan_level is not None:
+        report["pairs"][f"faust_000_011_subdivided_{args.scan_level}"] = scan_pair(args.scan_level, args.repeat)
+    report["machine"]["load_avg_1min_after"] = round(os.getloadavg()[0], 2)
     print(json.dumps(report, indent=2))
 
 

@@ -4,20 +4,17 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from curvefm.fmap import FunctionalMaps
+from curvefm.plugins.refinement_params import SearchParams
 from curvefm.pointwise import PointwiseMaps, pointwise_from_both, pointwise_from_fmap
 from curvefm.progress import Progress, no_progress
 from curvefm.registry import ConverterPlugin
 from curvefm.spectral import ShapePair
 
 
-class NearestNeighborParams(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    search: Literal["faiss", "blocked"] = Field(
-        "faiss", description="exact search backend: faiss IndexFlatL2, or blocked numpy matrix products"
-    )
+class NearestNeighborParams(SearchParams):
     embedding: Literal["both", "single"] = Field(
         "both",
         description="'both': match in the embedding built from C_MN and C_NM together; 'single': each "

@@ -5,8 +5,9 @@ Starting from the ``nearest-neighbor`` maps, for k = k_init, k_init + step, ...,
 functional map of each pointwise map, then convert it back to a pointwise map by nearest neighbours in k
 dimensions. The user's curves stay pinned (:class:`~curvefm.pointwise.CurvePins`): after every conversion
 the vertices of each curve map onto its partner curve, so each fitted map keeps them. With ``samples`` set,
-the iterations run on that many farthest-point samples of each shape (the paper's fast variant: maps between
-samples, functional maps by least squares on the samples) and only the last conversion is at full resolution.
+or by default on shapes of more than ``dense_up_to`` vertices, the iterations run on farthest-point samples
+of each shape (the paper's fast variant, :mod:`curvefm.pointwise.sampled`) and only the last conversion is at
+full resolution.
 
 Starting at the session's own k (usually 120) is much worse than starting low: curve constraints pin down
 the low frequencies only. On FAUST 000 -> 011 with 10 curves, 120 -> 200 reached 0.025 (from 0.028), while
@@ -18,25 +19,27 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import Field, model_validator
 
 from curvefm.fmap import FunctionalMaps
+from curvefm.plugins.refinement_params import SampledRefinementParams
 from curvefm.pointwise import (
     CurvePins,
     PointwiseMaps,
+    VertexRows,
     bases_with,
+    fit_fmap,
     initial_maps,
-    nearest_neighbors,
+    match_rows,
     no_pins,
-    spread_samples,
+    refinement_samples,
 )
 from curvefm.progress import Progress, no_progress, scaled
 from curvefm.registry import ConverterPlugin
 from curvefm.spectral import Basis, ShapePair
 
 
-class ZoomOutParams(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+class ZoomOutParams(SampledRefinementParams):
     k_init: int = Field(20, ge=2, le=1000, description="basis size of the first functional map fitted")
     k_final: int = Field(
         120, ge=2, le=1000, description="basis size of the last map (a larger basis than the session's is computed)"
@@ -46,16 +49,6 @@ class ZoomOutParams(BaseModel):
         "single",
         description="'single': each pointwise map from its own functional map (the paper); 'both': from both "
         "maps at once, as the nearest-neighbor converter",
-    )
-    samples: int | None = Field(
-        None,
-        ge=2,
-        le=10**6,
-        description="fast variant: iterate on this many farthest-point samples per shape (at least k_final); "
-        "null: on every vertex",
-    )
-    search: Literal["faiss", "blocked"] = Field(
-        "faiss", description="exact nearest-neighbour backend: faiss IndexFlatL2, or blocked numpy matrix products"
     )
 
     @model_validator(mode="after")
@@ -67,44 +60,6 @@ class ZoomOutParams(BaseModel):
         return self
 
 
-class _Rows:
-    """The vertices ZoomOut iterates on, for one shape: all of them, or farthest-point samples."""
-
-    def __init__(self, basis: Basis, ids: np.ndarray | None):
-        self.basis = basis
-        self.all = ids is None
-        self.ids = np.arange(basis.n_vertices) if ids is None else ids
-
-    def evecs(self, k: int) -> np.ndarray:
-        return self.basis.evecs[self.ids, :k]
-
-    @property
-    def subset(self) -> np.ndarray | None:
-        return None if self.all else self.ids
-
-
-def fit_fmap(p2p: np.ndarray, domain: _Rows, image: _Rows, k: int) -> np.ndarray:
-    """The k x k functional map (image -> domain coefficients) pulled back by a pointwise map that sends
-    ``domain.ids[r]`` to vertex ``p2p[r]`` of the image. All vertices: ``Psi^T A Phi[p2p]``; samples: least
-    squares on the samples."""
-    moved = image.basis.evecs[p2p, :k]
-    if domain.all:
-        return domain.evecs(k).T @ (domain.basis.mass[:, None] * moved)
-    return np.linalg.lstsq(domain.evecs(k), moved, rcond=None)[0]
-
-
-def match_rows(
-    C: np.ndarray, C_back: np.ndarray, domain: _Rows, image: _Rows, embedding: str, search: str
-) -> np.ndarray:
-    """The pointwise map from the domain's rows to the image's rows induced by ``C`` (image -> domain
-    coefficients, as ``C_MN`` for a map N -> M) and, with ``embedding='both'``, by ``C_back`` too."""
-    k = C.shape[0]
-    data, queries = image.evecs(k) @ C.T, domain.evecs(k)
-    if embedding == "both":
-        data, queries = np.hstack([data, image.evecs(k)]), np.hstack([queries, queries @ C_back.T])
-    return image.ids[nearest_neighbors(data, queries, search)]
-
-
 def zoomout(
     maps: PointwiseMaps,
     basis_M: Basis,
@@ -114,21 +69,22 @@ def zoomout(
     progress: Progress = no_progress,
     pins: CurvePins | None = None,
 ) -> PointwiseMaps:
-    """ZoomOut from pointwise maps. ``samples`` is ``(ids_M, ids_N)`` for the fast variant, else None;
+    """ZoomOut from pointwise maps. ``samples`` is ``(ids_M, ids_N)`` for the fast variant, else None; ``maps``
+    hold one entry per sample then (:func:`~curvefm.pointwise.initial_maps` with the samples), else per vertex.
     ``pins`` fix the partners of the curves' vertices after every conversion."""
     ids_M, ids_N = samples if samples is not None else (None, None)
-    rows_M, rows_N = _Rows(basis_M, ids_M), _Rows(basis_N, ids_N)
+    rows_M, rows_N = VertexRows(basis_M, ids_M), VertexRows(basis_N, ids_N)
     pins = pins or no_pins(basis_M.n_vertices, basis_N.n_vertices)
-    p_NM = pins.pin_NM(maps.p2p_NM[rows_N.ids], rows_N.subset)
-    p_MN = pins.pin_MN(maps.p2p_MN[rows_M.ids], rows_M.subset)
+    p_NM, p_MN = pins.pin_NM(maps.p2p_NM, rows_N.subset), pins.pin_MN(maps.p2p_MN, rows_M.subset)
     sizes = list(range(params.k_init, params.k_final, params.step)) + [params.k_final]
     for i, k in enumerate(sizes):
         progress(i / len(sizes), f"ZoomOut k = {k} (up to {params.k_final})")
         C_MN, C_NM = fit_fmap(p_NM, rows_N, rows_M, k), fit_fmap(p_MN, rows_M, rows_N, k)
         if i == len(sizes) - 1 and samples is not None:
-            rows_M, rows_N = _Rows(basis_M, None), _Rows(basis_N, None)
-        p_NM = pins.pin_NM(match_rows(C_MN, C_NM, rows_N, rows_M, params.embedding, params.search), rows_N.subset)
-        p_MN = pins.pin_MN(match_rows(C_NM, C_MN, rows_M, rows_N, params.embedding, params.search), rows_M.subset)
+            rows_M, rows_N = VertexRows(basis_M), VertexRows(basis_N)
+        both = params.embedding == "both"
+        p_NM = pins.pin_NM(match_rows(C_MN, rows_N, rows_M, params.search, C_NM if both else None), rows_N.subset)
+        p_MN = pins.pin_MN(match_rows(C_NM, rows_M, rows_N, params.search, C_MN if both else None), rows_M.subset)
     progress(1.0, f"ZoomOut finished at k = {params.k_final}")
     return PointwiseMaps(p2p_NM=p_NM, p2p_MN=p_MN)
 
@@ -136,13 +92,11 @@ def zoomout(
 def convert_zoomout(
     pair: ShapePair, fmaps: FunctionalMaps, params: ZoomOutParams, progress: Progress = no_progress, curves=()
 ) -> PointwiseMaps:
-    progress(0.0, "initial maps (nearest neighbours)")
-    maps = initial_maps(pair, fmaps, params.search)
-    basis_M, basis_N = bases_with(pair, params.k_final, scaled(progress, 0.05, 0.2))
-    samples = None
-    if params.samples is not None:
-        progress(0.2, f"{params.samples} farthest-point samples per shape")
-        samples = (spread_samples(pair.mesh_M, params.samples), spread_samples(pair.mesh_N, params.samples))
+    progress(0.0, "choosing the vertices to iterate on")
+    samples = refinement_samples(pair.mesh_M, pair.mesh_N, params.samples, params.dense_up_to)
+    progress(0.05, "initial maps (nearest neighbours)")
+    maps = initial_maps(pair, fmaps, params.search, samples)
+    basis_M, basis_N = bases_with(pair, params.k_final, scaled(progress, 0.1, 0.2))
     pins = CurvePins.from_curves(pair.mesh_M, pair.mesh_N, curves)
     return zoomout(maps, basis_M, basis_N, params, samples, scaled(progress, 0.25, 1.0), pins)
 

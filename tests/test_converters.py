@@ -20,7 +20,7 @@ from curvefm.evaluation import evaluate_map, ground_truth_curves, ground_truth_f
 from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K, DEFAULT_SAMPLES, FunctionalMaps
 from curvefm.geometry import load_mesh
 from curvefm.matching import MatchResult, match
-from curvefm.pointwise import closest_points
+from curvefm.pointwise import AUTO_SAMPLES, closest_points, refinement_samples
 from curvefm.progress import Cancelled, no_progress
 from curvefm.session import CurveRecord, CurveSpec, SessionRecord
 from curvefm.store import Store
@@ -63,9 +63,7 @@ def cat_lion(shared_data, store) -> Case:
     return ten_curve_case(shared_data, store, CAT_LION)
 
 
-def refined_error(
-    case: Case, converter: str, params: dict, pair=None, fmaps=None, progress=no_progress
-) -> float:
+def refined_error(case: Case, converter: str, params: dict, pair=None, fmaps=None, progress=no_progress) -> float:
     plugin, parsed = registry.load("converter", converter, params)
     maps = plugin.run(pair or case.result.pair, fmaps or case.result.fmaps, parsed, progress)
     mesh_M, mesh_N = case.result.pair.meshes
@@ -74,14 +72,49 @@ def refined_error(
     return evaluate_map(maps.p2p_MN, case.truth, mesh_N).mean_area
 
 
-@pytest.mark.parametrize(
-    "converter, params", [("icp", {}), ("zoomout", {}), ("zoomout", {"samples": 2000}), ("rhm", SHORT_RHM)]
-)
+@pytest.fixture(scope="module")
+def faust_zoomout_error(faust) -> float:
+    """ZoomOut with its defaults, which on FAUST (6,890 vertices) iterate on every vertex."""
+    return refined_error(faust, "zoomout", {})
+
+
+@pytest.mark.parametrize("converter, params", [("icp", {}), ("zoomout", {"samples": 2000}), ("rhm", SHORT_RHM)])
 def test_faust_every_converter_beats_nearest_neighbor(faust, converter, params):
     error = refined_error(faust, converter, params)
     assert error < faust.baseline, (error, faust.baseline)
     if converter == "zoomout":
         assert error <= 0.7 * faust.baseline, (error, faust.baseline)
+
+
+def test_faust_zoomout_beats_nearest_neighbor_by_30_percent(faust, faust_zoomout_error):
+    assert faust_zoomout_error <= 0.7 * faust.baseline, (faust_zoomout_error, faust.baseline)
+
+
+def test_faust_is_refined_on_every_vertex_by_default_and_sampled_zoomout_stays_close(faust, faust_zoomout_error):
+    mesh_M, mesh_N = faust.result.pair.meshes
+    assert refinement_samples(mesh_M, mesh_N, None) is None
+    ids_M, ids_N = refinement_samples(mesh_M, mesh_N, None, dense_up_to=mesh_M.n_vertices - 1)
+    assert len(ids_M) == len(ids_N) == AUTO_SAMPLES
+    dense = faust_zoomout_error
+    sampled = refined_error(faust, "zoomout", {"dense_up_to": 0})  # as on a big mesh: AUTO_SAMPLES samples
+    # measured: 0.0140 against 0.0111 here (FAUST's vertices crowd the hands and face, where spread samples are
+    # sparse); on the 110k subdivided pair sampled and dense agree within 2% (benchmarks/bench_converters.py)
+    assert sampled <= 1.3 * dense, (sampled, dense)
+    assert sampled <= 0.7 * faust.baseline, (sampled, faust.baseline)
+
+
+def test_sampled_icp_beats_nearest_neighbor(faust):
+    error = refined_error(faust, "icp", {"samples": 2000})
+    assert error < faust.baseline, (error, faust.baseline)
+
+
+def test_rhm_on_decimated_copies_beats_nearest_neighbor(faust):
+    """As on a big mesh: RHM on 2,000-vertex copies, then one projection of every vertex."""
+    messages = []
+    params = SHORT_RHM | {"init": "nearest-neighbor", "dense_up_to": 0, "coarse_vertices": 2000}
+    error = refined_error(faust, "rhm", params, progress=lambda fraction, message: messages.append(message))
+    assert error < faust.baseline, (error, faust.baseline)
+    assert messages[-1] == "projecting every vertex"
 
 
 def test_cat_to_lion_rhm_beats_nearest_neighbor(cat_lion):
@@ -196,6 +229,9 @@ def test_closest_points_on_an_embedded_mesh_match_dense_sampling():
         ("icp", {"iterations": 0}, "iterations"),
         ("zoomout", {"k_init": 50, "k_final": 30}, "k_final"),
         ("zoomout", {"samples": 100}, "samples"),
+        ("zoomout", {"search": "faiss"}, "search"),
+        ("icp", {"samples": 60}, "samples"),
+        ("nearest-neighbor", {"search": "hnsw"}, "search"),
         ("zoomout", {"step": "big"}, "step"),
         ("rhm", {"alpha": 1.5}, "alpha"),
         ("rhm", {"projection": "edge"}, "projection"),

@@ -1,8 +1,9 @@
 """Triangle meshes and what is computed on their surface alone: the :class:`Mesh` type (internal and file
 vertex ids), validation, one reader/writer per file format, Laplace-Beltrami operators, graph paths,
-geodesic distances, farthest-point sampling and texture coordinates.
+geodesic distances, farthest-point sampling, decimation and texture coordinates.
 """
 
+from curvefm.geometry.decimation import closest_point_weights, decimate
 from curvefm.geometry.geodesics import (
     DEFAULT_CHUNK_BYTES,
     checked_ids,
@@ -37,7 +38,9 @@ __all__ = [
     "check_edge_path",
     "checkerboard_image",
     "checked_ids",
+    "closest_point_weights",
     "cotangent_laplacian",
+    "decimate",
     "cylindrical_uv",
     "edge_keys",
     "edge_weight_graph",

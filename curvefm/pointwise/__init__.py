@@ -1,6 +1,7 @@
 """Pointwise maps: conversion from functional maps (spectral nearest neighbours), the helpers the refining
 converters share, the user's curves as constraints on them, intrinsic quality figures (no ground truth needed),
-exact high-dimensional neighbour search, and geodesic embeddings for RHM.
+high-dimensional neighbour search (exact or approximate), refinement on vertex samples, and geodesic
+embeddings for RHM.
 """
 
 from curvefm.pointwise.conversion import (
@@ -19,12 +20,33 @@ from curvefm.pointwise.geodesic_mds import (
     smacof,
     vertex_faces,
 )
-from curvefm.pointwise.neighbors import BLOCK, nearest_neighbors
+from curvefm.pointwise.neighbors import (
+    APPROXIMATE_FROM_PAIRS,
+    BLOCK,
+    SEARCHES,
+    Search,
+    nearest_neighbors,
+    uses_approximate,
+)
 from curvefm.pointwise.quality import MapQuality, compare, measure
 from curvefm.pointwise.refinement import bases_with, initial_maps, spread_samples, unit_area
+from curvefm.pointwise.sampled import (
+    AUTO_SAMPLES,
+    DENSE_UP_TO,
+    VertexRows,
+    fit_fmap,
+    match_rows,
+    refinement_samples,
+)
 
 __all__ = [
+    "APPROXIMATE_FROM_PAIRS",
+    "AUTO_SAMPLES",
     "BLOCK",
+    "DENSE_UP_TO",
+    "SEARCHES",
+    "Search",
+    "VertexRows",
     "CurvePins",
     "MapQuality",
     "PointwiseMaps",
@@ -34,16 +56,20 @@ __all__ = [
     "closest_on_triangles",
     "closest_points",
     "compare",
+    "fit_fmap",
     "fmap_from_pointwise",
     "geodesic_embedding",
     "initial_maps",
+    "match_rows",
     "measure",
     "nearest_neighbors",
     "no_pins",
     "pointwise_from_both",
     "pointwise_from_fmap",
+    "refinement_samples",
     "smacof",
     "spread_samples",
     "unit_area",
+    "uses_approximate",
     "vertex_faces",
 ]

@@ -23,7 +23,7 @@ class PointwiseMaps:
 
 
 def pointwise_from_fmap(
-    C_MN: np.ndarray, basis_M: Basis, basis_N: Basis, search: str = "faiss", rows: np.ndarray | None = None
+    C_MN: np.ndarray, basis_M: Basis, basis_N: Basis, search: str = "auto", rows: np.ndarray | None = None
 ) -> np.ndarray:
     """``p2p_NM`` from ``C_MN`` alone: for each y of N the x of M minimising ``|C_MN Phi[x] - Psi[y]|``.
 
@@ -34,15 +34,21 @@ def pointwise_from_fmap(
 
 
 def pointwise_from_both(
-    C_MN: np.ndarray, C_NM: np.ndarray, basis_M: Basis, basis_N: Basis, search: str = "faiss"
+    C_MN: np.ndarray,
+    C_NM: np.ndarray,
+    basis_M: Basis,
+    basis_N: Basis,
+    search: str = "auto",
+    rows: np.ndarray | None = None,
 ) -> np.ndarray:
     """``p2p_NM`` using both maps: for each y of N the x of M minimising
-    ``|C_MN Phi[x] - Psi[y]|^2 + |Phi[x] - C_NM Psi[y]|^2``.
+    ``|C_MN Phi[x] - Psi[y]|^2 + |Phi[x] - C_NM Psi[y]|^2``. With ``rows`` only those vertices of N are matched.
 
     Measured on FAUST 000 -> 011 with 10 curves this lowers the error from 0.0315 to 0.0276 (by sqrt(area)),
     and on cat -> lion it is as good or better; see the README."""
     k_N, k_M = C_MN.shape
-    Phi, Psi = basis_M.evecs[:, :k_M], basis_N.evecs[:, :k_N]
+    Phi = basis_M.evecs[:, :k_M]
+    Psi = basis_N.evecs[:, :k_N] if rows is None else basis_N.evecs[rows, :k_N]
     return nearest_neighbors(np.hstack([Phi @ C_MN.T, Phi]), np.hstack([Psi, Psi @ C_NM.T]), search)
 
 

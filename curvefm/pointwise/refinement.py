@@ -27,12 +27,20 @@ def unit_area(mesh: Mesh) -> Mesh:
     return dataclasses.replace(mesh, vertices=mesh.vertices / np.sqrt(mesh.area))
 
 
-def initial_maps(pair: ShapePair, maps: FunctionalMaps, search: str = "faiss") -> PointwiseMaps:
-    """The ``nearest-neighbor`` converter's maps (both functional maps at once), where refinement starts."""
+def initial_maps(
+    pair: ShapePair,
+    maps: FunctionalMaps,
+    search: str = "auto",
+    samples: tuple[np.ndarray, np.ndarray] | None = None,
+) -> PointwiseMaps:
+    """The ``nearest-neighbor`` converter's maps (both functional maps at once), where refinement starts.
+    With ``samples`` ``(ids_M, ids_N)`` only those vertices are matched (to any vertex of the other shape):
+    ``p2p_NM[r]`` is then the vertex of M for vertex ``ids_N[r]`` of N."""
     M, N = pair.basis_M, pair.basis_N
+    ids_M, ids_N = samples if samples is not None else (None, None)
     return PointwiseMaps(
-        p2p_NM=pointwise_from_both(maps.C_MN, maps.C_NM, M, N, search),
-        p2p_MN=pointwise_from_both(maps.C_NM, maps.C_MN, N, M, search),
+        p2p_NM=pointwise_from_both(maps.C_MN, maps.C_NM, M, N, search, ids_N),
+        p2p_MN=pointwise_from_both(maps.C_NM, maps.C_MN, N, M, search, ids_M),
     )
 
 
@@ -54,5 +62,6 @@ def _basis_with(basis: Basis, mesh: Mesh, k: int, progress: Progress) -> Basis:
 
 
 def spread_samples(mesh: Mesh, count: int) -> np.ndarray:
-    """``count`` (at most every) vertices spread by geodesic farthest-point sampling, from vertex 0."""
-    return farthest_point_sampling(mesh, min(count, mesh.n_vertices))
+    """``count`` (at most every) vertices spread by farthest-point sampling along edges, from vertex 0
+    (without the face diagonals: 4,000 samples of 110k vertices in 1.8 s instead of 10 s)."""
+    return farthest_point_sampling(mesh, min(count, mesh.n_vertices), diagonals=False)

@@ -19,6 +19,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
+from curvefm.geometry import closest_point_weights, decimate
 from curvefm.spectral.eigensolver import SIGMA, shifted_factor, smallest_eigenpairs
 
 COARSE_VERTICES = 8_000
@@ -56,20 +57,8 @@ def prolongation(vertices: np.ndarray, faces: np.ndarray, coarse_vertices: int) 
     """``P`` (n x n_coarse): row i holds the barycentric weights of vertex i's closest point on a decimated
     copy of the mesh, so the columns are the coarse mesh's hat functions seen from the full one. Coarse
     vertices that no row uses are dropped, so the coarse mass stays positive."""
-    import open3d as o3d  # about 2 s of CPU to import: only here, for big meshes
-
-    mesh = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(vertices), o3d.utility.Vector3iVector(faces))
-    coarse = mesh.simplify_quadric_decimation(target_number_of_triangles=2 * coarse_vertices)
-    scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(coarse))
-    closest = scene.compute_closest_points(o3d.core.Tensor(vertices.astype(np.float32)))
-    corners = np.asarray(coarse.triangles)[closest["primitive_ids"].numpy().astype(np.int64)]
-    u, v = closest["primitive_uvs"].numpy().astype(float).T
-    weights = np.clip(np.stack([1.0 - u - v, u, v], axis=1), 0.0, 1.0)
-    weights /= weights.sum(axis=1, keepdims=True)
-    rows = np.repeat(np.arange(len(vertices)), 3)
-    shape = (len(vertices), len(coarse.vertices))
-    matrix = sp.csr_matrix((weights.ravel(), (rows, corners.ravel())), shape=shape)
+    coarse_points, coarse_faces = decimate(vertices, faces, coarse_vertices)
+    matrix = closest_point_weights(vertices, coarse_points, coarse_faces)
     return matrix[:, np.flatnonzero(np.asarray(matrix.sum(axis=0)).ravel() > 0)].tocsr()
 
 
