@@ -4,8 +4,8 @@ lock, exactly as sessions' (:class:`curvefm.session.RecordFiles`)."""
 from __future__ import annotations
 
 from curvefm.collection.record import CollectionRecord
-from curvefm.errors import NotFound, Unavailable, shown
-from curvefm.session import RecordFiles
+from curvefm.errors import NotFound, shown
+from curvefm.session import RecordBusy, RecordFiles
 
 
 class UnknownCollection(NotFound):
@@ -13,14 +13,10 @@ class UnknownCollection(NotFound):
         super().__init__(f"no collection with id '{shown(collection_id)}'")
 
 
+class CollectionBusy(RecordBusy):
+    kind = "collection"
+
+
 class CollectionStore(RecordFiles[CollectionRecord]):
     kind, folder_name, model = "collection", "collections", CollectionRecord
-
-    def unknown(self, record_id: str) -> NotFound:
-        return UnknownCollection(record_id)
-
-    def busy(self, record_id: str) -> Unavailable:
-        return Unavailable(
-            f"collection {record_id} is busy: another request held it for more than {self.lock_timeout_s:g} s "
-            "(CURVEFM_SESSION_LOCK_TIMEOUT); try again"
-        )
+    unknown, busy = UnknownCollection, CollectionBusy

@@ -51,6 +51,7 @@ from curvefm.session.record import (
 )
 from curvefm.session.record_store import (
     DEFAULT_LOCK_TIMEOUT_S,
+    RecordBusy,
     RecordFiles,
     SessionBusy,
     SessionStore,
@@ -74,6 +75,7 @@ __all__ = [
     "MapSummary",
     "MissingBasis",
     "Samples",
+    "RecordBusy",
     "RecordFiles",
     "SessionCreate",
     "SessionEditor",

@@ -50,20 +50,26 @@ class UnknownSession(NotFound):
         super().__init__(f"no session with id '{shown(session_id)}'")
 
 
-class SessionBusy(Unavailable):
-    """A session's lock was held by another request (or process) for longer than the configured wait."""
+class RecordBusy(Unavailable):
+    """A record's lock was held by another request (or process) for longer than the configured wait."""
 
-    def __init__(self, session_id: str, timeout_s: float):
+    kind = "record"
+
+    def __init__(self, record_id: str, timeout_s: float):
         super().__init__(
-            f"session {session_id} is busy: another request held it for more than {timeout_s:g} s "
+            f"{self.kind} {record_id} is busy: another request held it for more than {timeout_s:g} s "
             f"(session_lock_timeout; set CURVEFM_SESSION_LOCK_TIMEOUT to change it); try again"
         )
+
+
+class SessionBusy(RecordBusy):
+    kind = "session"
 
 
 class RecordFiles(Generic[R]):
     """Records of one kind, one JSON file each under ``<data>/<folder>/``: read, created, written atomically with
     the next revision, and locked across processes (see the module doc). A subclass names its folder, record
-    model and errors (:meth:`unknown`, :meth:`busy`).
+    model and errors (``unknown``: no such record; ``busy``: its lock was held too long).
 
     ``lock_timeout_s``: how long a request waits for a record another request (or process) holds before the
     busy error; a stuck holder then costs each waiter that long, not a thread forever."""
@@ -72,17 +78,14 @@ class RecordFiles(Generic[R]):
     """What a record is, for messages ("session")."""
     folder_name: str
     model: type[R]
+    unknown: type[NotFound]
+    """Raised with the record's id when there is no such record."""
+    busy: type[RecordBusy]
 
     def __init__(self, data_dir: str | Path, lock_timeout_s: float = DEFAULT_LOCK_TIMEOUT_S):
         self.folder = Path(data_dir) / self.folder_name
         self.lock_timeout_s = lock_timeout_s
         self._parsed: LRU[tuple[bytes, R]] = LRU(PARSED_RECORDS)
-
-    def unknown(self, record_id: str) -> NotFound:
-        raise NotImplementedError
-
-    def busy(self, record_id: str) -> Unavailable:
-        raise NotImplementedError
 
     def exists(self, record_id: str) -> bool:
         return well_formed(record_id) and self._path(record_id).is_file()
@@ -135,7 +138,7 @@ class RecordFiles(Generic[R]):
                 return
             except BlockingIOError:
                 if time.monotonic() >= deadline:
-                    raise self.busy(record_id) from None
+                    raise self.busy(record_id, self.lock_timeout_s) from None
                 time.sleep(pause)
                 pause = min(2 * pause, 0.05)
 
@@ -168,12 +171,7 @@ class SessionStore(RecordFiles[SessionRecord]):
     """Session records under ``<data>/sessions/``, with the ids of the refinement jobs run from each."""
 
     kind, folder_name, model = "session", "sessions", SessionRecord
-
-    def unknown(self, record_id: str) -> NotFound:
-        return UnknownSession(record_id)
-
-    def busy(self, record_id: str) -> Unavailable:
-        return SessionBusy(record_id, self.lock_timeout_s)
+    unknown, busy = UnknownSession, SessionBusy
 
     def read_changed(self, session_id: str, revision: int) -> SessionRecord | None:
         """The stored record if its revision is not ``revision``, else ``None``: then only the revision is parsed
