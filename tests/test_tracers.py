@@ -78,14 +78,19 @@ def test_paths_are_edge_connected_with_right_ends(wolf, plugin):
     assert plugin.run(wolf, 7, 7, params).tolist() == [7]
 
 
-@pytest.mark.parametrize("radius", [2.0, 0.5], ids=["bounded-search", "full-search"])
-def test_geodesic_length_equals_dijkstra_distance(wolf, radius, monkeypatch):
-    monkeypatch.setattr(tracers, "SEARCH_RADIUS", radius)  # 0.5 never reaches the end: the fallback answers
+@pytest.mark.parametrize(
+    ("first_reach", "tries"),
+    [(0.75, 3), (0.05, 3), (0.05, 1)],
+    ids=["bidirectional", "bidirectional-regrown", "whole-mesh-fallback"],
+)
+def test_geodesic_length_equals_dijkstra_distance(wolf, first_reach, tries, monkeypatch):
+    monkeypatch.setattr(tracers, "FIRST_REACH", first_reach)
+    monkeypatch.setattr(tracers, "BOUNDED_TRIES", tries)
     rng = np.random.default_rng(1)
     starts = rng.integers(0, wolf.n_vertices, 10)
     ends = rng.integers(0, wolf.n_vertices, 10)
     dist = dijkstra(wolf.edge_graph, directed=False, indices=starts)
-    # include near pairs (the bounded first search answers) and far ones (the full-search fallback)
+    # near pairs (the first bounded searches meet) and far ones (a grown reach or the whole-mesh search answers)
     near = [int(np.argsort(dist[i])[40]) for i in range(len(starts))]
     for i, start in enumerate(starts):
         for end in (ends[i], near[i]):
