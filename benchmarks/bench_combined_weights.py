@@ -9,15 +9,13 @@ import json
 import sys
 
 import numpy as np
-from common import bench_store, machine, shared_data
+from common import ground_truth_pair, machine
 
 from curvefm import registry
-from curvefm.evaluation import ground_truth_curves, ground_truth_for, score
+from curvefm.evaluation import ground_truth_curves, score
 from curvefm.fmap import CombinedMapSolver, FunctionalMaps
-from curvefm.geometry import load_mesh
 from curvefm.matching import convert
 from curvefm.runtime import limit_blas_threads
-from curvefm.spectral import ShapePair
 
 PAIRS = [
     ("faust/tr_reg_000.off", "faust/tr_reg_011.off"),
@@ -44,14 +42,11 @@ def pair_errors(pair, truth, curves, converter):
 
 
 def main():
-    data, store = shared_data(), bench_store()
     converter = registry.load("converter", "nearest-neighbor", None)
     rows = []
     for (source, target), count in itertools.product(PAIRS, COUNTS):
-        M, N = load_mesh(data / source), load_mesh(data / target)
-        truth = ground_truth_for(data / source, data / target, M, N)
-        pair = ShapePair(M, N, store.ensure_basis(M, 120), store.ensure_basis(N, 120))
-        curves = ground_truth_curves(M, N, truth, count)
+        pair, truth = ground_truth_pair(source, target)
+        curves = ground_truth_curves(pair.mesh_M, pair.mesh_N, truth, count)
         rows.append({"pair": f"{source} -> {target}", "curves": count,
                      "errors": pair_errors(pair, truth, curves, converter)})
         print(f"{source} -> {target}, {count} curves done", file=sys.stderr, flush=True)

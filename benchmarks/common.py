@@ -14,6 +14,9 @@ import httpx
 
 from curvefm.access import UserStore
 from curvefm.errors import Conflict
+from curvefm.evaluation import ground_truth_for
+from curvefm.geometry import load_mesh
+from curvefm.spectral import ShapePair
 from curvefm.store import Store
 
 REPO = Path(__file__).resolve().parents[1]
@@ -29,6 +32,15 @@ def shared_data() -> Path:
 def bench_store() -> Store:
     """Bases cached between benchmark runs (``CURVEFM_BENCH_DATA``, default /tmp/curvefm-bench)."""
     return Store(os.environ.get("CURVEFM_BENCH_DATA", "/tmp/curvefm-bench"))
+
+
+def ground_truth_pair(source: str, target: str, k: int = 120):
+    """``(ShapePair, GroundTruth)`` for two meshes of the shared data folder (paths relative to it), with
+    bases of k functions from :func:`bench_store`."""
+    data, store = shared_data(), bench_store()
+    M, N = load_mesh(data / source), load_mesh(data / target)
+    truth = ground_truth_for(data / source, data / target, M, N)
+    return ShapePair(M, N, store.ensure_basis(M, k), store.ensure_basis(N, k)), truth
 
 
 def machine() -> dict:

@@ -24,8 +24,13 @@ to G and B, an edit re-sums k x k matrices, and the update stays exact and as fa
 has no direct solver; preconditioned conjugate gradients on it needed 20-400 iterations (0.1-1 s) at k = 120 in
 our trials and was no more accurate (see the README, "The combined energy").
 
-Descriptor commutativity (NO17) and orientation terms are not included: they couple rows and columns of C
-through ``Y C X`` terms, which no column solve can hold.
+Descriptor commutativity (NO17) is not included: added on the leading 30 x 30 block of C and solved exactly
+(benchmarks/bench_commutativity.py, 2026-11-23) it left FAUST 000 -> 011 with 2 curves at 0.053, improved
+wolf0 -> wolf2 from 0.088 to 0.070 (NO17 with the endpoints: 0.011) and made cat -> lion worse (0.057 -> 0.078).
+With few curves the curve terms themselves mislead: curves traced between corresponding endpoints do not
+correspond point by point at equal arc length (a median 0.03-0.06 sqrt(area) off with 2 curves), so NO17's
+energy with the endpoints beats any mix with them; see the README, "Descriptor commutativity in the combined
+energy". Orientation terms were not tried.
 """
 
 from __future__ import annotations
