@@ -4,7 +4,7 @@
  * Layout: uint32 header length H (little-endian), H bytes of JSON header, then the arrays back to back; the
  * header gives each array's dtype, shape and byte offset from the end of the header.
  * Returns { name, nVertices, vertices: Float32Array(n*3), faces: Uint32Array(f*3), fileIds: Uint32Array(n),
- * fileToInternal: Int32Array (file id -> internal id, -1 if dropped) }.
+ * fileToInternal: Int32Array (file id -> internal id, -1 if dropped), winding (see outwardWinding) }.
  */
 export function decodeMesh(buffer) {
   const headerLength = new DataView(buffer).getUint32(0, true);
@@ -31,7 +31,89 @@ export function decodeMesh(buffer) {
     fileIds,
     fileToInternal,
     texcoords: arrays.texcoords,
+    winding: outwardWinding(vertices, faces, fileIds.length),
   };
+}
+
+/** How the faces are wound seen from outside: 1 when every face turns counter-clockwise seen from outside, -1 when
+ * every face turns the other way (inside out), 0 when that cannot be told (an edge run twice the same way:
+ * non-manifold or inconsistently wound; a part that is open, with holes whose vector area is over
+ * ``maxOpening`` of its area, or flat): then both sides of a face may be seen. Small holes (TOSCA's cats and
+ * dogs: under 0.1%) do not count: through them one sees what is behind the shape. */
+export function outwardWinding(vertices, faces, nVertices, maxOpening = 0.01) {
+  if (!consistentlyWound(faces, nVertices)) return 0;
+  const parts = partMeasures(vertices, faces, nVertices);
+  let sign = 0;
+  for (let part = 0; part < parts.count; part++) {
+    const [volume, area, ax, ay, az] = parts.measures.slice(5 * part, 5 * part + 5);
+    if (Math.hypot(ax, ay, az) > maxOpening * area || volume === 0) return 0;
+    if (sign !== 0 && Math.sign(volume) !== sign) return 0;
+    sign = Math.sign(volume);
+  }
+  return sign;
+}
+
+/** Whether no directed edge a -> b occurs twice among the faces' edges (each face runs its edges a -> b -> c -> a),
+ * i.e. faces that share an edge run it in opposite directions and no edge has more than two faces. */
+function consistentlyWound(faces, nVertices) {
+  const start = new Uint32Array(nVertices + 1); // heads[start[v] .. start[v + 1]) are where v's edges go
+  for (let i = 0; i < faces.length; i++) start[faces[i] + 1] += 1;
+  for (let v = 0; v < nVertices; v++) start[v + 1] += start[v];
+  const next = start.slice(0, nVertices);
+  const heads = new Uint32Array(faces.length);
+  for (let f = 0; f < faces.length; f += 3) {
+    heads[next[faces[f]]++] = faces[f + 1];
+    heads[next[faces[f + 1]]++] = faces[f + 2];
+    heads[next[faces[f + 2]]++] = faces[f];
+  }
+  for (let v = 0; v < nVertices; v++) {
+    for (let i = start[v]; i < start[v + 1]; i++) {
+      for (let j = i + 1; j < start[v + 1]; j++) if (heads[i] === heads[j]) return false;
+    }
+  }
+  return true;
+}
+
+/** Per connected part of the surface: { count, measures: 5 numbers a part: the signed volume it encloses (times
+ * 6), its area and its vector area (x, y, z) (times 2) }. */
+function partMeasures(vertices, faces, nVertices) {
+  const parent = new Int32Array(nVertices);
+  for (let v = 0; v < nVertices; v++) parent[v] = v;
+  const root = (v) => {
+    while (parent[v] !== v) v = parent[v] = parent[parent[v]];
+    return v;
+  };
+  for (let f = 0; f < faces.length; f += 3) {
+    const r = root(faces[f]);
+    parent[root(faces[f + 1])] = r;
+    parent[root(faces[f + 2])] = r;
+  }
+  const partOf = new Int32Array(nVertices).fill(-1);
+  let count = 0;
+  for (let v = 0; v < nVertices; v++) if (parent[v] === v) partOf[v] = count++;
+  const measures = new Float64Array(5 * count);
+  const v = vertices;
+  for (let f = 0; f < faces.length; f += 3) {
+    const a = 3 * faces[f];
+    const b = 3 * faces[f + 1];
+    const c = 3 * faces[f + 2];
+    const ux = v[b] - v[a];
+    const uy = v[b + 1] - v[a + 1];
+    const uz = v[b + 2] - v[a + 2];
+    const wx = v[c] - v[a];
+    const wy = v[c + 1] - v[a + 1];
+    const wz = v[c + 2] - v[a + 2];
+    const nx = uy * wz - uz * wy; // twice the face's vector area
+    const ny = uz * wx - ux * wz;
+    const nz = ux * wy - uy * wx;
+    const m = 5 * partOf[root(faces[f])];
+    measures[m] += v[a] * nx + v[a + 1] * ny + v[a + 2] * nz;
+    measures[m + 1] += Math.sqrt(nx * nx + ny * ny + nz * nz);
+    measures[m + 2] += nx;
+    measures[m + 3] += ny;
+    measures[m + 4] += nz;
+  }
+  return { count, measures };
 }
 
 /** A map file as written by the service (line j: the source file id for target file vertex j, as
