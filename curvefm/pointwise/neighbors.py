@@ -41,6 +41,9 @@ APPROXIMATE_FROM_PAIRS = 200_000_000
 CELLS_PER_SQRT_ROW = 2  # k-means cells: 2 sqrt(rows) (664 at 110k, 1,328 at 440k)
 TRAINING_ROWS_PER_CELL = 40  # faiss asks for at least 39 points a cell
 PROBED_CELLS = 8  # cells each query searches
+#: k-means iterations to place the cells (faiss's default is 25): at 440k x 240 dimensions 10 gave the same
+#: neighbour for every query as 25, in 12 s of training instead of 34 (2026-11-23)
+KMEANS_ITERATIONS = 10
 
 
 def nearest_neighbors(data: np.ndarray, queries: np.ndarray, search: str = "auto") -> np.ndarray:
@@ -80,6 +83,7 @@ def _inverted_file_nearest(data: np.ndarray, queries: np.ndarray) -> np.ndarray:
     cells = cell_count(len(data))
     quantizer = faiss.IndexFlatL2(data.shape[1])
     index = faiss.IndexIVFFlat(quantizer, data.shape[1], cells)
+    index.cp.niter = KMEANS_ITERATIONS
     training = min(len(data), TRAINING_ROWS_PER_CELL * cells)
     index.train(data[np.random.default_rng(0).choice(len(data), training, replace=False)])
     index.add(data)
