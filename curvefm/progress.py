@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 
 Progress = Callable[[float, str], None]
@@ -20,3 +21,20 @@ def no_progress(fraction: float, message: str) -> None:
 def scaled(progress: Progress, start: float, stop: float) -> Progress:
     """Map a sub-task's 0..1 onto ``start..stop`` of the parent's progress."""
     return lambda fraction, message: progress(start + (stop - start) * fraction, message)
+
+
+def shared(progress: Progress, parts: int) -> list[Progress]:
+    """Progress callbacks for ``parts`` sub-tasks running at once: the parent sees the mean of their fractions
+    (a lock keeps reports from several threads in order)."""
+    fractions = [0.0] * parts
+    lock = threading.Lock()
+
+    def part(index: int) -> Progress:
+        def report(fraction: float, message: str) -> None:
+            with lock:
+                fractions[index] = fraction
+                progress(sum(fractions) / parts, message)
+
+        return report
+
+    return [part(index) for index in range(parts)]

@@ -224,3 +224,17 @@ def test_no17_is_as_accurate_as_pyfm_given_the_same_landmarks(shared_data, tmp_p
     ours_error = evaluate_map(ours, truth, N).mean_area
     pyfm_error = evaluate_map(model.get_p2p(), truth, N).mean_area
     assert ours_error <= 1.05 * pyfm_error, (ours_error, pyfm_error)
+
+
+def test_both_bases_are_computed_at_once_as_each_alone_with_one_progress(pair, tmp_path):
+    M, _, N, _ = pair
+    reports = []
+    together = pair_with_basis_size(Store(tmp_path / "together"), (M, N), 30, progress=lambda f, m: reports.append(f))
+    for mesh, basis in ((M, together.basis_M), (N, together.basis_N)):
+        alone = Store(tmp_path / "alone").ensure_basis(mesh, 30)
+        np.testing.assert_allclose(basis.evals, alone.evals, rtol=1e-10)
+        np.testing.assert_allclose(np.abs(basis.evecs), np.abs(alone.evecs), atol=1e-8)
+    assert reports and max(reports) == pytest.approx(1.0) and all(0.0 <= f <= 1.0 for f in reports)
+    same = pair_with_basis_size(Store(tmp_path / "same"), (M, M), 30)
+    assert same.basis_M is same.basis_N
+    assert len(Store(tmp_path / "same").stored_bases(M.content_hash)) == 1

@@ -71,3 +71,21 @@ def test_blocked_search_agrees_with_exact(faust_bases):
 def test_an_unknown_search_is_refused_naming_the_choices():
     with pytest.raises(InvalidInput, match="unknown nearest-neighbour search 'hnsw'.*auto, exact, approximate"):
         nearest_neighbors(np.zeros((5, 3)), np.zeros((2, 3)), "hnsw")
+
+
+def test_approximate_search_gives_the_same_rows_on_one_thread_and_on_two(faust_bases, monkeypatch):
+    data, queries = embedding(faust_bases, 60)
+    found = {}
+    for threads in ("1", "2"):
+        monkeypatch.setenv("CURVEFM_SEARCH_THREADS", threads)
+        assert neighbors.search_threads() == int(threads)
+        found[threads] = nearest_neighbors(data, queries, "approximate")
+    assert np.array_equal(found["1"], found["2"])
+
+
+@pytest.mark.parametrize("value", ["0", "two", "-1", "1.5"])
+def test_a_bad_search_thread_count_is_refused_naming_the_variable(faust_bases, monkeypatch, value):
+    monkeypatch.setenv("CURVEFM_SEARCH_THREADS", value)
+    data, queries = embedding(faust_bases, 20)
+    with pytest.raises(InvalidInput, match=f"CURVEFM_SEARCH_THREADS must be a whole number.*{value!r}"):
+        nearest_neighbors(data, queries, "approximate")
