@@ -14,10 +14,15 @@ web UI in headless Chromium (WebGL through SwiftShader, i.e. drawn on the CPU). 
   (``PerformanceObserver('longtask')``) and the longest gap between animation frames while the session loads
   and while ``--large-curves`` curves are added; the page counts as frozen from a gap of 1 s.
 
-Endpoints are pairs of vertices visible on both shapes with the same id (TOSCA poses of one class correspond by
-id), sampled on a grid over the source canvas, at least 120 pixels apart. Prints JSON.
+``--scan-level L`` measures ``latency`` on FAUST tr_reg_000 -> tr_reg_011 subdivided L times instead
+(``trimesh.remesh.subdivide``, generated at run time and uploaded as PLY, never written to disk: 110,210 vertices
+for L = 2, where issue 14's budget is p95 <= 150 ms).
 
-Usage: ``python benchmarks/bench_ui_latency.py [--data DIR] [--curves N] [--large-curves M] [--no-large]``
+Endpoints are pairs of vertices visible on both shapes with the same id (TOSCA poses of one class, and FAUST
+registrations, correspond by id), sampled on a grid over the source canvas, at least 120 pixels apart. Prints JSON.
+
+Usage: ``python benchmarks/bench_ui_latency.py [--data DIR] [--curves N] [--large-curves M] [--no-large]
+[--scan-level L]``
 """
 
 from __future__ import annotations
@@ -31,6 +36,7 @@ from pathlib import Path
 
 import httpx
 import numpy as np
+import trimesh
 from common import REPO, machine, shared_data, start_server
 
 sys.path.insert(0, str(REPO / "tests"))
@@ -47,6 +53,7 @@ from ui_helpers import (  # noqa: E402  (shared with the browser tests)
 K = 120
 LATENCY_PAIR = ("cat0.off", "cat1.off")
 LARGE_PAIR = ("david0.off", "david1.off")
+SCAN_PAIR = ("tr_reg_000", "tr_reg_011")
 FROZEN_GAP_MS = 1000
 
 # Installed before the page's own scripts: records long tasks and the gaps between animation frames.
@@ -65,12 +72,27 @@ requestAnimationFrame(tick);
 """
 
 
-def prepare_session(client: httpx.Client, names: tuple[str, str]) -> tuple[str, int]:
+def tosca_files(names: tuple[str, str]) -> list[tuple[str, bytes]]:
+    return [(name, (shared_data() / "tosca" / name).read_bytes()) for name in names]
+
+
+def subdivided_faust(level: int) -> list[tuple[str, bytes]]:
+    """FAUST tr_reg_000 and tr_reg_011 subdivided ``level`` times, as PLY files in memory."""
+    files = []
+    for name in SCAN_PAIR:
+        mesh = trimesh.load(shared_data() / "faust" / f"{name}.off", process=False)
+        vertices, faces = mesh.vertices, mesh.faces
+        for _ in range(level):
+            vertices, faces = trimesh.remesh.subdivide(vertices, faces)
+        files.append((f"{name}_x{level}.ply", trimesh.Trimesh(vertices, faces, process=False).export(file_type="ply")))
+    return files
+
+
+def prepare_session(client: httpx.Client, files: list[tuple[str, bytes]]) -> tuple[str, int]:
     """Upload the pair, compute its bases, create a session: (session id, source vertex count)."""
     ids, n_vertices = [], 0
-    for name in names:
-        with open(shared_data() / "tosca" / name, "rb") as f:
-            shape = client.post("/shapes", files={"file": (name, f)}).raise_for_status().json()
+    for name, content in files:
+        shape = client.post("/shapes", files={"file": (name, content)}).raise_for_status().json()
         ids.append(shape["id"])
         n_vertices = n_vertices or shape["n_vertices"]
     for shape_id in ids:
@@ -87,7 +109,7 @@ def percentile(values: list[float], q: float) -> float:
     return round(float(np.percentile(values, q)), 1)
 
 
-def measure_latency(browser, url: str, token: str, session_id: str, n_vertices: int, curves: int) -> dict:
+def measure_latency(browser, url: str, token: str, session_id: str, n_vertices: int, curves: int, pair: str) -> dict:
     page = browser.new_page(viewport=VIEWPORT)
     open_session(page, url, session_id, token, timeout_ms=120_000)
     pairs = endpoint_pairs(pickable_vertices(page), curves)
@@ -95,7 +117,7 @@ def measure_latency(browser, url: str, token: str, session_id: str, n_vertices: 
     page.close()
     total = [s["totalMs"] for s in samples]
     return {
-        "pair": "/".join(LATENCY_PAIR),
+        "pair": pair,
         "vertices": n_vertices,
         "k": K,
         "curves": curves,
@@ -142,6 +164,7 @@ def main() -> None:
     parser.add_argument("--curves", type=int, default=20)
     parser.add_argument("--large-curves", type=int, default=3)
     parser.add_argument("--no-large", action="store_true", help="skip the 50k-vertex responsiveness check")
+    parser.add_argument("--scan-level", type=int, default=0, help="latency on FAUST subdivided this many times")
     args = parser.parse_args()
     if not CHROMIUM.is_file():
         sys.exit(f"benchmark needs Chromium at {CHROMIUM} (set CURVEFM_CHROMIUM)")
@@ -154,10 +177,14 @@ def main() -> None:
         result = {"machine": {**machine(), "load_average_1min": os.getloadavg()[0]}, "renderer": "SwiftShader"}
         with sync_playwright() as playwright:
             browser = launch(playwright)
-            session_id, n = prepare_session(client, LATENCY_PAIR)
-            result["latency"] = measure_latency(browser, url, token, session_id, n, args.curves)
+            if args.scan_level:
+                files, pair = subdivided_faust(args.scan_level), f"FAUST {'/'.join(SCAN_PAIR)} x{args.scan_level}"
+            else:
+                files, pair = tosca_files(LATENCY_PAIR), "/".join(LATENCY_PAIR)
+            session_id, n = prepare_session(client, files)
+            result["latency"] = measure_latency(browser, url, token, session_id, n, args.curves, pair)
             if not args.no_large:
-                session_id, n = prepare_session(client, LARGE_PAIR)
+                session_id, n = prepare_session(client, tosca_files(LARGE_PAIR))
                 result["responsiveness"] = measure_responsiveness(
                     browser, url, token, session_id, n, args.large_curves
                 )
