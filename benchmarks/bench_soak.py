@@ -211,6 +211,7 @@ async def soak(url: str, headers: dict[str, str], server_pid: int, args) -> dict
         "from_schedule": percentiles(load.from_schedule),
         "rss_mb": {"start": load.rss[0][1], "middle": middle[1], "end": load.rss[-1][1],
                    "max": max(mb for _, mb in load.rss)},
+        "rss_series_s_mb": [[round(t), mb] for t, mb in load.rss],
     }
 
 
