@@ -99,7 +99,9 @@ def _trace(mesh: Mesh, graph: sp.csr_matrix, start: int, end: int) -> np.ndarray
     """
     if start == end:
         return np.array([start], dtype=np.int64)
-    longest = float(graph.data.max())
+    # the tracers' edge costs never exceed the edge lengths, so the mesh's longest edge bounds w_max (cached: a
+    # maximum over every edge per trace cost 1.3 ms at 440k vertices)
+    longest = mesh.derived.get(("longest edge",), lambda: float(mesh.edge_lengths.max()))
     reach = FIRST_REACH * float(np.linalg.norm(mesh.vertices[start] - mesh.vertices[end])) + longest
     for _ in range(BOUNDED_TRIES):
         # our graphs are symmetric, so directed=True is the same search without scipy symmetrising per call
