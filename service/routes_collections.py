@@ -125,9 +125,7 @@ def add_members(collection_id: str, body: MembersRequest, services: ServicesDep,
     """Add stored shapes as members (each gets a session template -> member); their basis jobs are queued.
     413 past ``CURVEFM_MAX_MEMBERS``."""
     collection_for(services, user, collection_id, "edit")
-    services.collections.add_members(collection_id, body.shapes)
-    _queue_bases(services, services.collections.record(collection_id), user)
-    return _view(services, collection_id)
+    return _with_members(services, user, collection_id, body.shapes)
 
 
 @router.post(
@@ -150,6 +148,11 @@ def upload_members(
     if not files:  # a multipart body without parts: the schema cannot ask for at least one
         raise InvalidInput("upload at least one mesh file (multipart field 'files')")
     shapes = [store_upload(services, user, file)[0] for file in files]
+    return _with_members(services, user, collection_id, shapes)
+
+
+def _with_members(services: Services, user: User, collection_id: str, shapes: list[str]) -> CollectionView:
+    """Add the stored shapes as members, queue their basis jobs, and return the collection's view."""
     services.collections.add_members(collection_id, shapes)
     _queue_bases(services, services.collections.record(collection_id), user)
     return _view(services, collection_id)
