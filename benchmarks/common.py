@@ -1,5 +1,6 @@
 """Shared helpers for the benchmarks: data location, cached bases, timing."""
 
+import itertools
 import os
 import platform
 import socket
@@ -41,6 +42,21 @@ def ground_truth_pair(source: str, target: str, k: int = 120):
     M, N = load_mesh(data / source), load_mesh(data / target)
     truth = ground_truth_for(data / source, data / target, M, N)
     return ShapePair(M, N, store.ensure_basis(M, k), store.ensure_basis(N, k)), truth
+
+
+def ground_truth_rows(pairs, counts, errors_for) -> list[dict]:
+    """``{"pair", "curves", "errors"}`` per pair and curve count, ``errors = errors_for(pair, truth, curves)`` for
+    ``curvefm evaluate``'s ground-truth curves (2n farthest points among the vertices with a known partner,
+    consecutive pairs joined); progress on stderr."""
+    from curvefm.evaluation import ground_truth_curves
+
+    rows = []
+    for (source, target), count in itertools.product(pairs, counts):
+        pair, truth = ground_truth_pair(source, target)
+        curves = ground_truth_curves(pair.mesh_M, pair.mesh_N, truth, count)
+        rows.append({"pair": f"{source} -> {target}", "curves": count, "errors": errors_for(pair, truth, curves)})
+        print(f"{source} -> {target}, {count} curves done", file=sys.stderr, flush=True)
+    return rows
 
 
 def machine() -> dict:

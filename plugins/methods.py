@@ -24,33 +24,29 @@ from curvefm.fmap import (
     DEFAULT_COMBINED_ALPHA,
     DEFAULT_DESCRIPTOR_WEIGHT,
     DEFAULT_KERNEL_WEIGHT,
+    DEFAULT_PRIOR_WEIGHT,
     DEFAULT_SAMPLES,
     EXACT_MAX_K,
+    FULL_SIZE_CURVES,
     KERNEL_POINTS,
     CombinedMapSolver,
     CurveMapSolver,
-    DescriptorEnergy,
     FunctionalMaps,
     Hints,
+    NO17Settings,
     balanced_weights,
     check_method_k,
+    descriptor_functions,
     descriptor_least_squares,
-    lbfgs,
+    descriptor_part,
+    no17_maps,
     normalised_eigenvalues,
 )
 from curvefm.progress import Progress, no_progress
 from curvefm.registry import MethodPlugin
-from curvefm.spectral import (
-    Basis,
-    ShapePair,
-    curve_function,
-    multiplication_operators,
-    normalised,
-    wave_kernel_maps,
-    wave_kernel_signature,
-)
+from curvefm.spectral import Basis, ShapePair, curve_function, normalised
 
-W_COMM = 1.0  # chosen on FAUST 000 -> 011 and cat -> lion, see the README ("Baselines against pyFM")
+NO17_DEFAULTS = NO17Settings()
 NO_OPERATORS = np.zeros((0, 1, 1))
 
 
@@ -70,6 +66,14 @@ class CombinedParams(CurvesParams):
     )
     kernel_points: int = Field(
         KERNEL_POINTS, ge=2, le=100, description="curve samples with wave kernel maps, endpoints included"
+    )
+    prior_weight: float = Field(
+        DEFAULT_PRIOR_WEIGHT, ge=0, description="weight of the landmark prior (NO17's map from the curves' endpoints) "
+        "relative to the curve systems' mean diagonal; 0: no prior, and the map always has the basis's size",
+    )
+    full_size_curves: int = Field(
+        FULL_SIZE_CURVES, ge=1, le=100_000, description="with fewer curves than this (and a prior) the map has the "
+        "prior's size, 50 x 50: its higher frequencies are not determined yet and would blur the pointwise map",
     )
 
 
@@ -101,12 +105,20 @@ def _solve_curves(
 
 class DescriptorParams(BaseModel):
     model_config = ConfigDict(extra="forbid")
-    k: int = Field(50, ge=3, le=1000, description="size of the functional map")
-    spectrum: int = Field(120, ge=3, le=1000, description="eigenpairs used to build the wave kernels")
-    energies: int = Field(20, ge=1, le=500, description="log-energies per wave kernel descriptor")
-    sigma: float = Field(0.07, gt=0, description="filter width as a fraction of the log-eigenvalue range")
+    k: int = Field(NO17_DEFAULTS.k, ge=3, le=1000, description="size of the functional map")
+    spectrum: int = Field(
+        NO17_DEFAULTS.spectrum, ge=3, le=1000, description="eigenpairs used to build the wave kernels"
+    )
+    energies: int = Field(
+        NO17_DEFAULTS.energies, ge=1, le=500, description="log-energies per wave kernel descriptor"
+    )
+    sigma: float = Field(
+        NO17_DEFAULTS.sigma, gt=0, description="filter width as a fraction of the log-eigenvalue range"
+    )
     margin: float = Field(
-        2.0, ge=0, description="the energies start and end this many filter widths inside the log-eigenvalue range"
+        NO17_DEFAULTS.margin,
+        ge=0,
+        description="the energies start and end this many filter widths inside the log-eigenvalue range",
     )
     mu: float = Field(
         1.0, ge=0, description="weight of Laplacian commutativity relative to descriptor preservation (each "
@@ -119,8 +131,8 @@ class DescriptorParams(BaseModel):
 
 class NO17Params(DescriptorParams):
     mu: float = Field(
-        0.01, ge=0, description="weight of Laplacian commutativity relative to descriptor preservation (each "
-        "term divided by its typical size)",
+        NO17_DEFAULTS.mu, ge=0, description="weight of Laplacian commutativity relative to descriptor preservation "
+        "(each term divided by its typical size)",
     )
     inputs: Literal["landmarks", "curves"] = Field(
         "landmarks",
@@ -128,11 +140,16 @@ class NO17Params(DescriptorParams):
         "(-1 off the curve, normalised arc length on it), the paper's baseline test",
     )
     w_comm: float = Field(
-        W_COMM, ge=0, description="weight of descriptor commutativity relative to descriptor preservation (each "
-        "term divided by its typical size)",
+        NO17_DEFAULTS.w_comm,
+        ge=0,
+        description="weight of descriptor commutativity relative to descriptor preservation (each term divided by "
+        "its typical size)",
     )
     max_iter: int = Field(
-        300, ge=1, le=100_000, description=f"L-BFGS iterations (only for k > {EXACT_MAX_K}; smaller maps are exact)"
+        NO17_DEFAULTS.max_iter,
+        ge=1,
+        le=100_000,
+        description=f"L-BFGS iterations (only for k > {EXACT_MAX_K}; smaller maps are exact)",
     )
 
 
@@ -142,15 +159,17 @@ def landmark_descriptors(
     """Corresponding descriptor columns on M and N: WKS, and the wave kernel maps at the landmarks."""
     if params.landmarks and len(hints.landmarks) == 0:
         raise InvalidInput("the descriptor methods need at least one landmark (or one curve), or landmarks=false")
-    out = []
-    for side, basis in ((0, pair.basis_M), (1, pair.basis_N)):
-        spectral = _spectrum(basis, params.spectrum)
-        filters = {"n_energies": params.energies, "sigma": params.sigma, "margin": params.margin}
-        columns = [wave_kernel_signature(spectral, **filters)]
-        if params.landmarks:
-            columns.append(wave_kernel_maps(spectral, hints.landmarks[:, side], **filters))
-        out.append(normalised(basis, np.hstack(columns)))
-    return out[0], out[1]
+    landmarks = hints.landmarks if params.landmarks else np.zeros((0, 2), dtype=np.int64)
+    settings = _settings(params)
+    return tuple(
+        descriptor_functions(_spectrum(basis, params.spectrum), landmarks[:, side], settings)
+        for side, basis in ((0, pair.basis_M), (1, pair.basis_N))
+    )
+
+
+def _settings(params: DescriptorParams) -> NO17Settings:
+    fields = ("k", "spectrum", "energies", "sigma", "margin", "mu", "w_comm", "max_iter")
+    return NO17Settings(**{name: getattr(params, name) for name in fields if hasattr(params, name)})
 
 
 def curve_descriptors(pair: ShapePair, hints: Hints) -> tuple[np.ndarray, np.ndarray]:
@@ -190,27 +209,11 @@ def run_no17(pair: ShapePair, hints: Hints, params: NO17Params, progress: Progre
     k = check_method_k(params.k, pair.basis_M, pair.basis_N)
     curves = params.inputs == "curves"
     f_M, f_N = curve_descriptors(pair, hints) if curves else landmark_descriptors(pair, hints, params)
-    A, B = _coefficients(pair.basis_M, f_M, k), _coefficients(pair.basis_N, f_N, k)
-    X = multiplication_operators(pair.basis_M, f_M, k)
-    Y = multiplication_operators(pair.basis_N, f_N, k)
-    lam_M, lam_N = normalised_eigenvalues(pair.basis_M, pair.basis_N, k)
-    maps = []
-    for step, (F_from, F_to, l_from, l_to, X_from, X_to) in enumerate(
-        ((A, B, lam_M, lam_N, X, Y), (B, A, lam_N, lam_M, Y, X))
-    ):
-        progress(0.5 * step, "descriptor preservation and commutativity")
-        w_descr, mu, w_comm = balanced_weights(F_from, F_to, l_from, l_to, X_from, X_to, params.mu, params.w_comm)
-        energy = DescriptorEnergy(F_from, F_to, l_from, l_to, X_from, X_to, mu, w_descr, w_comm)
-        maps.append(energy.minimiser() if k <= EXACT_MAX_K else _quasi_newton(energy, params.max_iter))
+    progress(0.0, "descriptor preservation and commutativity")
+    part_M, part_N = descriptor_part(pair.basis_M, f_M, k), descriptor_part(pair.basis_N, f_N, k)
+    maps = no17_maps(part_M, part_N, pair.basis_M, pair.basis_N, _settings(params))
     progress(1.0, "done")
-    return FunctionalMaps(maps[0], maps[1])
-
-
-def _quasi_newton(energy: DescriptorEnergy, max_iter: int) -> np.ndarray:
-    """L-BFGS from the map of descriptor preservation and Laplacian commutativity alone."""
-    scale = energy.F_from.shape[1] / energy.w_descr
-    start = descriptor_least_squares(energy.F_from, energy.F_to, energy.lam_from, energy.lam_to, energy.mu * scale)
-    return lbfgs(energy, start, max_iter)[0]
+    return maps
 
 
 COMBINED = MethodPlugin(

@@ -109,7 +109,8 @@ class CurveEdit(BaseModel):
 
 class MapResponse(BaseModel):
     revision: int
-    k: int
+    k: int = Field(description="size of the maps: the session's k, or the landmark prior's 50 while the combined "
+                   "energy has fewer than 10 curves (their higher frequencies are not yet determined)")
     C_source_to_target: list[list[float]] = Field(description="C_MN: coefficients on M -> coefficients on N")
     C_target_to_source: list[list[float]] = Field(description="C_NM")
 

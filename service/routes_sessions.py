@@ -155,7 +155,7 @@ def get_map(session_id: str, services: ServicesDep, user: CurrentUser) -> MapRes
     C_MN, C_NM, record = services.sessions.maps(session_id)
     return MapResponse(
         revision=record.revision,
-        k=record.k,
+        k=len(C_MN),
         C_source_to_target=C_MN.tolist(),
         C_target_to_source=C_NM.tolist(),
     )
@@ -175,6 +175,11 @@ TRANSFER_HEADERS = {
         "description": "milliseconds this request spent solving the map (0: already solved)",
         "schema": {"type": "string"},
     },
+    "X-Prior-Pending": {
+        "description": "true while the combined energy's landmark prior for the current curves is being computed "
+        "(about a second): the map for this revision will still improve, so read again shortly; else false",
+        "schema": {"type": "string", "enum": ["true", "false"]},
+    },
 }
 
 
@@ -191,16 +196,18 @@ def get_transfer(
 ) -> Response:
     """A function on the source carried to the target through the current map: float32 little-endian,
     ``n x d`` row-major with one row per target vertex in internal order (as ``GET /shapes/{id}/mesh``).
-    Headers: ``X-Shape: n,d``, ``X-Revision`` and ``X-Solve-Ms`` (the map is solved on its first read after
-    an edit). ``uv``: the source's texture coordinates (or generated
+    Headers: ``X-Shape: n,d``, ``X-Revision``, ``X-Solve-Ms`` (the map is solved on its first read after
+    an edit) and ``X-Prior-Pending``. ``uv``: the source's texture coordinates (or generated
     cylindrical ones); ``xyz``: source coordinates scaled to [0, 1] per axis; ``indicator``: 1 on
     ``vertices``, 0 elsewhere."""
     session_for(services, user, session_id, "read")
-    values, revision, solve_ms = services.sessions.transfer(session_id, function, _parse_ids(vertices))
+    carried = services.sessions.transfer(session_id, function, _parse_ids(vertices))
+    values = carried.rows
     headers = {
         "X-Shape": f"{values.shape[0]},{values.shape[1]}",
-        "X-Revision": str(revision),
-        "X-Solve-Ms": f"{solve_ms:.3f}",
+        "X-Revision": str(carried.revision),
+        "X-Solve-Ms": f"{carried.solve_ms:.3f}",
+        "X-Prior-Pending": "true" if carried.prior_pending else "false",
     }
     return Response(values.astype("<f4").tobytes(), media_type="application/octet-stream", headers=headers)
 
@@ -270,7 +277,9 @@ def get_export(session_id: str, export: ExportName, services: ServicesDep, user:
         save_maps_mat(out, C_MN, C_NM)
         revision = record.revision
     else:
-        uv, revision, _ = services.sessions.transfer(session_id, "uv")
+        services.sessions.maps(session_id)  # the final map: its landmark prior computed
+        carried = services.sessions.transfer(session_id, "uv")
+        uv, revision = carried.rows, carried.revision
         save_textured_zip(services.live.mesh(record.target), uv, out, "target_textured")
     filename = f"{Path(export).stem}_{session_id}_r{revision}{Path(export).suffix}"
     headers = {"Content-Disposition": f'attachment; filename="{filename}"', "X-Revision": str(revision)}

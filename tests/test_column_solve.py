@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from curvefm.errors import CurvefmError, InternalError
-from curvefm.fmap import column_diagonals, column_ridge, column_solve, solve_both, solve_columns
+from curvefm.fmap import Prior, column_diagonals, column_ridge, column_solve, solve_both, solve_columns
 
 
 def reference(G, B, lam_rows, lam_cols, alpha):
@@ -120,6 +120,27 @@ def test_both_directions_threads_and_rectangular_maps():
     one_after_the_other = solve_both(G_N, G_M, B, lam_N, lam_M, alpha)  # no executor
     assert np.array_equal(one_after_the_other[0], C_MN) and np.array_equal(one_after_the_other[1], C_NM)
     assert relative_error(C_NM, reference(G_M, B.T, lam_M, lam_N, alpha)) < 1e-10
+
+
+def test_a_prior_pulls_its_block_and_leaves_the_callers_arrays_alone():
+    G_N, B, lam_N, lam_M = curve_like(50, 1, seed=7)
+    G_M, _, _, _ = curve_like(50, 1, seed=8)
+    C0_MN, C0_NM = np.random.default_rng(9).standard_normal((2, 20, 20))
+    priors = (Prior(C0_MN, 3.0), Prior(C0_NM, 3.0))
+    B_before = B.copy()
+    with ThreadPoolExecutor(1) as executor:  # both directions at once: a shared right-hand side must stay intact
+        C_MN, C_NM = solve_both(G_N, G_M, B, lam_N, lam_M, 1.0, priors=priors, executor=executor)
+    assert np.array_equal(B, B_before)
+    for C, G, rhs, rows, cols, C0 in ((C_MN, G_N, B, lam_N, lam_M, C0_MN), (C_NM, G_M, B.T, lam_M, lam_N, C0_NM)):
+        E = column_diagonals(G, rows, cols, 1.0)  # the prior as the reference sees it: on the leading block
+        E[:20, :20] += 3.0
+        wanted = np.array(rhs)
+        wanted[:20, :20] += 3.0 * C0
+        A = np.repeat(G[None], rhs.shape[1], axis=0)
+        A[:, np.arange(50), np.arange(50)] += E.T
+        assert relative_error(C, np.linalg.solve(A, wanted.T[:, :, None])[:, :, 0].T) < 1e-10
+    without = solve_columns(G_N, B, lam_N, lam_M, 1.0)
+    assert np.linalg.norm(C_MN[:20, :20] - C0_MN) < np.linalg.norm(without[:20, :20] - C0_MN)
 
 
 def test_f2py_fallback_gives_the_same_solution(monkeypatch):

@@ -173,3 +173,20 @@ def test_new_sessions_use_the_combined_energy_unless_they_ask_for_curves(server)
     assert not np.allclose(maps["combined"], maps["curves"], atol=1e-3)
     refused = server.client.post("/sessions", json=request | {"energy": "magic"})
     assert refused.status_code == 422 and "energy" in refused.text
+
+
+def test_the_landmark_prior_lands_in_the_background_and_then_the_map_stays(server):
+    url = f"/sessions/{server.session}"
+    server.client.post(f"{url}/curves", json={"source": [100, 3000], "target": [100, 3000]}).raise_for_status()
+    first = server.client.get(f"{url}/transfer").raise_for_status()  # solved at once; starts the prior's job
+    assert first.headers["X-Prior-Pending"] in ("true", "false")
+    latest, deadline = first, time.monotonic() + 60
+    while latest.headers["X-Prior-Pending"] == "true":
+        assert time.monotonic() < deadline, "the landmark prior did not land within 60 s"
+        time.sleep(0.2)
+        latest = server.client.get(f"{url}/transfer").raise_for_status()
+    assert latest.headers["X-Revision"] == first.headers["X-Revision"]
+    if first.headers["X-Prior-Pending"] == "true":  # the prior changed the map of the same revision
+        assert first.content != latest.content
+    again = server.client.get(f"{url}/transfer").raise_for_status()
+    assert again.headers["X-Prior-Pending"] == "false" and again.content == latest.content

@@ -96,7 +96,8 @@ def test_the_live_cache_is_bounded_and_rebuilds_evicted_sessions_from_disk(store
     assert editor.live.peek(first.id) is None
     _, summary = editor.add_curve(first.id, curve(2))
     assert (summary.n_curves, summary.revision) == (2, 2)
-    values, revision, _ = editor.transfer(first.id, "xyz")
+    carried = editor.transfer(first.id, "xyz")
+    values, revision = carried.rows, carried.revision
     assert values.shape == (store.get_mesh(first.target).n_vertices, 3) and revision == 2
     editor.live.close()
 

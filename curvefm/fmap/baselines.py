@@ -75,19 +75,26 @@ class DescriptorEnergy:
         ``I (x) S_X + S_Y (x) I - 2 sum_f Y_f (x) X_f``, ``S_X = sum_f X_f^2``; the last sum is one matrix
         product of the stacked operators."""
         k_to, k_from = len(self.lam_to), len(self.lam_from)
-        d, q = self.F_from.shape[1], max(len(self.X), 1)
-        D = (self.lam_to[:, None] - self.lam_from[None, :]) ** 2
-        H = self.w_descr / d * np.kron(np.eye(k_to), self.F_from @ self.F_from.T) + self.mu * np.diag(D.ravel())
-        if len(self.X):
+        d, q, n = self.F_from.shape[1], max(len(self.X), 1), k_to * k_from
+        if len(self.X):  # -2 sum_f Y_f (x) X_f, in place: the k^2 x k^2 matrix is the only large array made
+            H = np.tensordot(self.Y, self.X, axes=(0, 0)).transpose(0, 2, 1, 3).reshape(n, n)
+            H *= -2 * self.w_comm / q
             S_X, S_Y = np.einsum("fab,fbc->ac", self.X, self.X), np.einsum("fab,fbc->ac", self.Y, self.Y)
-            cross = self.Y.reshape(len(self.Y), -1).T @ self.X.reshape(len(self.X), -1)
-            cross = cross.reshape(k_to, k_to, k_from, k_from).transpose(0, 2, 1, 3).reshape(H.shape)
-            H += self.w_comm / q * (np.kron(np.eye(k_to), S_X) + np.kron(S_Y, np.eye(k_from)) - 2 * cross)
+        else:
+            H, S_X, S_Y = np.zeros((n, n)), 0.0, 0.0
+        blocks = H.reshape(k_to, k_from, k_to, k_from)
+        within_rows = self.w_descr / d * (self.F_from @ self.F_from.T) + self.w_comm / q * S_X
+        for i in range(k_to):  # I (x) (descriptors + S_X)
+            blocks[i, :, i, :] += within_rows
+        for a in range(k_from):  # S_Y (x) I
+            blocks[:, a, :, a] += self.w_comm / q * S_Y
+        H.flat[:: n + 1] += self.mu * ((self.lam_to[:, None] - self.lam_from[None, :]) ** 2).ravel()
         rhs = self.w_descr / d * (self.F_to @ self.F_from.T).ravel()
         try:
-            return scipy.linalg.solve(H, rhs, assume_a="pos").reshape(k_to, k_from)
+            solution = scipy.linalg.solve(H, rhs, assume_a="pos", overwrite_a=True, check_finite=False)
         except np.linalg.LinAlgError:
             raise InternalError("the descriptor energy is not strictly convex (no unique map)") from None
+        return solution.reshape(k_to, k_from)
 
     def __call__(self, x: np.ndarray) -> tuple[float, np.ndarray]:
         k_to, k_from = len(self.lam_to), len(self.lam_from)

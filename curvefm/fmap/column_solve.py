@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import ctypes
 from concurrent.futures import Executor
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg import lapack
@@ -60,6 +61,14 @@ def _gil_free_dposv():
 
 
 _DPOSV = _gil_free_dposv()
+
+
+@dataclass(frozen=True)
+class Prior:
+    """A map the solution is pulled towards on its leading block: ``weight ||C[:p, :q] - C0||^2``."""
+
+    C0: np.ndarray
+    weight: float
 
 
 def parallel_pays_off(size: int) -> bool:
@@ -96,19 +105,27 @@ def solve_columns(
     lam_cols: np.ndarray,
     alpha: float,
     *,
+    prior: Prior | None = None,
     executor: Executor | None = None,
 ) -> np.ndarray:
     """``C`` (k x n) whose column ``j`` solves ``(G + diag(E[:, j])) c_j = B[:, j]`` (see the module doc).
 
     ``G`` (k x k) is symmetric positive semi-definite (one triangle is read), ``B`` is k x n, ``lam_rows``
     has k entries (eigenvalues of the shape whose coefficients are the rows of ``C``) and ``lam_cols`` n.
-    With an ``executor``, half of the columns are solved on it while the calling thread solves the other half.
+    A ``prior`` adds ``weight ||C[:p, :q] - C0||^2`` for its ``C0`` (p x q) to the energy: ``weight`` on the
+    first p diagonal entries of the first q systems and ``weight C0`` to their right-hand sides, so the
+    systems keep their form. With an ``executor``, half of the columns are solved on it while the calling
+    thread solves the other half.
     """
     G, B, lam_rows, lam_cols = _checked(G, B, lam_rows, lam_cols, alpha)
     if B.size == 0:
         return np.zeros(B.shape)
     ET = np.ascontiguousarray(column_diagonals(G, lam_rows, lam_cols, alpha).T)
-    BT = np.ascontiguousarray(B.T)
+    BT = np.array(B.T, order="C")  # a copy: B.T may be the caller's array, which the prior must not change
+    if prior is not None:
+        p, q = prior.C0.shape
+        ET[:q, :p] += prior.weight
+        BT[:q, :p] += prior.weight * prior.C0.T
     CT = np.empty_like(BT)
     n = len(BT)
     if executor is not None and parallel_pays_off(B.size):
@@ -129,20 +146,24 @@ def solve_both(
     lam_M: np.ndarray,
     alpha: float,
     *,
+    priors: tuple[Prior, Prior] | None = None,
     executor: Executor | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Both map directions: ``(C_MN, C_NM)``. With an ``executor`` the reverse map is solved on it, side by
-    side with ``C_MN`` on the calling thread; without, one after the other.
+    """Both map directions: ``(C_MN, C_NM)``, with optional ``priors`` for them (in that order). With an
+    ``executor`` the reverse map is solved on it, side by side with ``C_MN`` on the calling thread; without,
+    one after the other.
 
     ``C_MN`` (k_N x k_M) takes coefficients on M to coefficients on N: ``G = G_N``, right-hand sides ``B``
     (k_N x k_M), rows ``lam_N``, columns ``lam_M``. ``C_NM`` (k_M x k_N) is the reverse map: ``G = G_M``,
     right-hand sides ``B.T``, rows ``lam_M``, columns ``lam_N``.
     """
     B = np.asarray(B, dtype=np.float64)
+    prior_MN, prior_NM = priors or (None, None)
     if executor is None or not parallel_pays_off(B.size):
-        return solve_columns(G_N, B, lam_N, lam_M, alpha), solve_columns(G_M, B.T, lam_M, lam_N, alpha)
-    reverse = executor.submit(solve_columns, G_M, B.T, lam_M, lam_N, alpha)
-    C_MN = solve_columns(G_N, B, lam_N, lam_M, alpha)
+        return (solve_columns(G_N, B, lam_N, lam_M, alpha, prior=prior_MN),
+                solve_columns(G_M, B.T, lam_M, lam_N, alpha, prior=prior_NM))  # fmt: skip
+    reverse = executor.submit(solve_columns, G_M, B.T, lam_M, lam_N, alpha, prior=prior_NM)
+    C_MN = solve_columns(G_N, B, lam_N, lam_M, alpha, prior=prior_MN)
     return C_MN, reverse.result()
 
 

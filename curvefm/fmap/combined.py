@@ -1,4 +1,4 @@
-"""The combined energy: curve constraints, descriptor preservation and landmark kernels in one exact solve.
+"""The combined energy: curve constraints, descriptors, landmark kernels and a landmark prior in one exact solve.
 
 ``C_MN`` minimises, with the curve solver's normalisations (:mod:`curvefm.fmap.solver`),
 
@@ -24,20 +24,32 @@ to G and B, an edit re-sums k x k matrices, and the update stays exact and as fa
 has no direct solver; preconditioned conjugate gradients on it needed 20-400 iterations (0.1-1 s) at k = 120 in
 our trials and was no more accurate (see the README, "The combined energy").
 
-Descriptor commutativity (NO17) is not included: added on the leading 30 x 30 block of C and solved exactly
-(benchmarks/bench_commutativity.py, 2026-11-23) it left FAUST 000 -> 011 with 2 curves at 0.053, improved
-wolf0 -> wolf2 from 0.088 to 0.070 (NO17 with the endpoints: 0.011) and made cat -> lion worse (0.057 -> 0.078).
-With few curves the curve terms themselves mislead: curves traced between corresponding endpoints do not
-correspond point by point at equal arc length (a median 0.03-0.06 sqrt(area) off with 2 curves), so NO17's
-energy with the endpoints beats any mix with them; see the README, "Descriptor commutativity in the combined
-energy". Orientation terms were not tried.
+The landmark prior. With few curves the curve terms mislead: curves traced between corresponding endpoints do not
+correspond point by point at equal arc length (a median 0.03-0.06 sqrt(area) off with 2 curves), while NO17 given
+only the endpoints (descriptor commutativity on a 50 x 50 map, :mod:`curvefm.fmap.landmark_prior`) was 1.1-8x
+more accurate up to 5 curves. Added as one more term inside the energy it cannot be column-separated, and its
+solve costs 0.3-1.5 s. So it enters as a prior: ``w_p ||C[:50, :50] - C_NO17||^2``, with ``w_p`` relative to
+the systems' mean diagonal. That adds ``w_p`` to the first 50 diagonal entries of the first 50 column systems and
+``w_p C_NO17`` to their right-hand sides: the solve keeps its form and its speed, and the prior is computed once
+per set of endpoints (in the background for an interactive solver). Below ``FULL_SIZE_CURVES`` curves the map is
+handed out at the prior's size: its higher frequencies are not determined by so few curves, and converted to
+points they only blurred the map (FAUST, 2 curves: 0.043 at 120 x 120, 0.031 at 50 x 50). Both settings come
+from benchmarks/bench_combined_prior.py (README, "The landmark prior").
 """
 
 from __future__ import annotations
 
+import logging
+from collections.abc import Callable
+from concurrent.futures import Executor, Future, wait
+
 import numpy as np
 
 from curvefm.cache import LRU
+from curvefm.errors import CurvefmError
+from curvefm.fmap.column_solve import Prior
+from curvefm.fmap.landmark_prior import NO17Settings, landmark_maps
+from curvefm.fmap.maps import FunctionalMaps, curve_endpoints
 from curvefm.fmap.solver import CurveMapSolver, basis_digest
 from curvefm.spectral import Basis, energy_filters, normalised, wave_kernel_signature
 
@@ -48,9 +60,16 @@ DEFAULT_COMBINED_ALPHA = 100.0
 DEFAULT_DESCRIPTOR_WEIGHT = 100.0
 DEFAULT_KERNEL_WEIGHT = 100.0
 KERNEL_POINTS = 2
+DEFAULT_PRIOR_WEIGHT = 30.0
+"""Weight of the landmark prior, relative to the mean diagonal of the curve systems: chosen by
+benchmarks/bench_combined_prior.py (README, "The landmark prior")."""
+FULL_SIZE_CURVES = 20
+"""Below this many curves the map is handed out at the prior's size (50 x 50): its higher frequencies are not
+determined by so few curves and only blur the pointwise map (README, "The landmark prior")."""
 ENERGIES = 20
 SIGMA = 0.06
 
+log = logging.getLogger(__name__)
 _SIGNATURES: LRU[np.ndarray] = LRU(16)  # by basis content: every session on a shape shares them
 
 
@@ -94,6 +113,12 @@ class CombinedMapSolver(CurveMapSolver):
     A curve is still stored as its two vertex paths; its k x k products (curve and kernel terms together) are
     computed from one restriction of the bases when it is added and again when it is removed or replaced.
     The signatures' products are fixed for the pair and added to the curves' sums at each solve.
+
+    The landmark prior: NO17's map from the curves' endpoints (:func:`curvefm.fmap.landmark_maps`), which the
+    leading block of C is pulled towards with ``prior_weight``. It costs 0.3-1.5 s at FAUST's size, so an
+    ``interactive`` solver given a ``prior_executor`` computes it there, one job at a time, when its maps are
+    read; until it lands the maps are solved with the last prior whose landmarks are all still there (or none),
+    and :attr:`prior_pending` says so. Without an executor it is computed in the solve.
     """
 
     def __init__(
@@ -103,13 +128,20 @@ class CombinedMapSolver(CurveMapSolver):
         descriptor_weight: float = DEFAULT_DESCRIPTOR_WEIGHT,
         kernel_weight: float = DEFAULT_KERNEL_WEIGHT,
         kernel_points: int = KERNEL_POINTS,
+        prior_weight: float = DEFAULT_PRIOR_WEIGHT,
+        full_size_curves: int = FULL_SIZE_CURVES,
+        prior_executor: Executor | None = None,
         **kwargs,
     ):
         super().__init__(*args, alpha=alpha, **kwargs)
         self.descriptor_weight, self.kernel_weight = float(descriptor_weight), float(kernel_weight)
-        self.kernel_points = kernel_points
+        self.kernel_points, self.prior_weight = kernel_points, float(prior_weight)
+        self.full_size_curves = full_size_curves
         self._signatures = self.descriptor_weight * signature_products(self.basis_M, self.basis_N)
         self._filters_M, self._filters_N = kernel_filters(self.basis_M.evals), kernel_filters(self.basis_N.evals)
+        self._prior_executor = prior_executor
+        self._prior: tuple[frozenset, FunctionalMaps] | None = None  # (landmark pairs, NO17's maps from them)
+        self._prior_job: tuple[frozenset, Future] | None = None
 
     def _side_factor(self, side: str, path: np.ndarray) -> np.ndarray:
         """The curve's factor on one side with its kernels' rows below, ``[PhiBar / sqrt(s); sqrt(w / p) K_M^T]``
@@ -127,3 +159,87 @@ class CombinedMapSolver(CurveMapSolver):
         G_M, G_N, B = super().normal_equations()
         W_M, W_N, W_B = self._signatures
         return G_M + W_M, G_N + W_N, B + W_B
+
+    # -- the landmark prior -----------------------------------------------------------------------------
+    @property
+    def C_MN(self) -> np.ndarray:
+        self._adopt_finished_prior()  # a prior that landed since the last read makes the maps stale
+        return super().C_MN
+
+    @property
+    def C_NM(self) -> np.ndarray:
+        self._adopt_finished_prior()
+        return super().C_NM
+
+    @property
+    def prior_pending(self) -> bool:
+        """Whether the maps will change once the prior for the current curves' endpoints lands."""
+        return self.prior_weight > 0 and bool(self.curves) and not self._prior_matches(self._landmarks())
+
+    def settle(self) -> None:
+        """Bring the prior up to date with the curves now, waiting for (or computing) it: for the final maps."""
+        landmarks = self._landmarks()
+        if self.prior_weight <= 0 or not self.curves or self._prior_matches(landmarks):
+            return
+        if self._prior_job is not None:
+            wait([self._prior_job[1]])
+        if not self._prior_matches(landmarks):
+            self._prior = (landmarks, _or_none(lambda: landmark_maps(self.basis_M, self.basis_N, _pairs(landmarks))))
+        self._stale = {"MN", "NM"}
+
+    def _landmarks(self) -> frozenset:
+        return frozenset(map(tuple, curve_endpoints([(t.path_M, t.path_N) for t in self.curves.values()]).tolist()))
+
+    def _prior_matches(self, landmarks: frozenset) -> bool:
+        self._adopt_finished_prior()
+        return self._prior is not None and self._prior[0] == landmarks
+
+    def _adopt_finished_prior(self) -> None:
+        if self._prior_job is not None and self._prior_job[1].done():
+            landmarks, job = self._prior_job
+            self._prior_job = None
+            self._prior = (landmarks, _or_none(job.result))
+            self._stale = {"MN", "NM"} if self.curves else self._stale
+
+    def _priors(self) -> tuple[Prior | None, Prior | None]:
+        if self.prior_weight <= 0 or not self.curves:
+            return None, None
+        landmarks = self._landmarks()
+        if not self._prior_matches(landmarks):
+            self._start_prior(landmarks)
+        if self._prior is None or self._prior[1] is None or not self._prior[0] <= landmarks:
+            return None, None
+        G_M, G_N, _ = self.normal_equations()
+        weight = self.prior_weight * float(np.trace(G_M) + np.trace(G_N)) / (2 * self.k)  # the mean diagonal
+        maps = self._prior[1]
+        return Prior(maps.C_MN, weight), Prior(maps.C_NM, weight)
+
+    def _start_prior(self, landmarks: frozenset) -> None:
+        pairs = _pairs(landmarks)
+        if self._prior_executor is None or not self.interactive:
+            self._prior = (landmarks, _or_none(lambda: landmark_maps(self.basis_M, self.basis_N, pairs)))
+        else:
+            if self._prior_job is not None and self._prior_job[1].cancel():  # outdated before it started
+                self._prior_job = None
+            if self._prior_job is None:  # else it runs: the next read after it lands asks for the current one
+                job = self._prior_executor.submit(landmark_maps, self.basis_M, self.basis_N, pairs)
+                self._prior_job = (landmarks, job)
+
+    def _sized(self, C: np.ndarray) -> np.ndarray:
+        if self.prior_weight <= 0 or len(self.curves) >= self.full_size_curves:
+            return C
+        size = min(NO17Settings().k, self.k)
+        return C[:size, :size].copy()
+
+
+def _pairs(landmarks: frozenset) -> np.ndarray:
+    return np.array(sorted(landmarks), dtype=np.int64).reshape(-1, 2)
+
+
+def _or_none(compute: Callable[[], FunctionalMaps]) -> FunctionalMaps | None:
+    """The prior, or None (the maps are then solved without one) if NO17's energy has no unique minimiser."""
+    try:
+        return compute()
+    except CurvefmError as error:
+        log.warning("no landmark prior: %s", error)
+        return None

@@ -39,7 +39,7 @@ import numpy as np
 
 from curvefm.cache import LRU
 from curvefm.errors import Conflict, InvalidInput, NotFound
-from curvefm.fmap.column_solve import parallel_pays_off, solve_both, solve_columns
+from curvefm.fmap.column_solve import Prior, parallel_pays_off, solve_both, solve_columns
 from curvefm.fmap.restriction import DEFAULT_SAMPLES, restrict
 from curvefm.spectral import Basis
 
@@ -262,7 +262,9 @@ class CurveMapSolver:
             G_M, G_N, B = self.normal_equations()
             executor = self._solve_executor(B.size)
             started = time.perf_counter()
-            self._C_MN, self._C_NM = solve_both(G_N, G_M, B, self.lam_N, self.lam_M, self.alpha, executor=executor)
+            priors = self._priors()
+            C_MN, C_NM = solve_both(G_N, G_M, B, self.lam_N, self.lam_M, self.alpha, priors=priors, executor=executor)
+            self._C_MN, self._C_NM = self._sized(C_MN), self._sized(C_NM)
             self._stale, self.last_solve_ms = set(), _ms_since(started)
 
     def _solve_executor(self, size: int) -> Executor | None:
@@ -282,7 +284,7 @@ class CurveMapSolver:
         """The map from M to N (with ``interactive``, solved on first use after an edit)."""
         if "MN" in self._stale:
             G_M, G_N, B = self.normal_equations()
-            self._C_MN = self._solve_one(G_N, B, self.lam_N, self.lam_M)
+            self._C_MN = self._sized(self._solve_one(G_N, B, self.lam_N, self.lam_M, self._priors()[0]))
             self._stale.discard("MN")
         return self._C_MN
 
@@ -291,14 +293,31 @@ class CurveMapSolver:
         """The reverse map (with ``interactive``, solved on first use after an edit)."""
         if "NM" in self._stale:
             G_M, G_N, B = self.normal_equations()
-            self._C_NM = self._solve_one(G_M, B.T, self.lam_M, self.lam_N)
+            self._C_NM = self._sized(self._solve_one(G_M, B.T, self.lam_M, self.lam_N, self._priors()[1]))
             self._stale.discard("NM")
         return self._C_NM
 
-    def _solve_one(self, G: np.ndarray, B: np.ndarray, lam_rows: np.ndarray, lam_cols: np.ndarray) -> np.ndarray:
+    def _solve_one(self, G: np.ndarray, B: np.ndarray, lam_rows: np.ndarray, lam_cols: np.ndarray,
+                   prior: Prior | None) -> np.ndarray:  # fmt: skip
         started = time.perf_counter()
-        C = solve_columns(G, B, lam_rows, lam_cols, self.alpha)
+        C = solve_columns(G, B, lam_rows, lam_cols, self.alpha, prior=prior)
         self.last_solve_ms = _ms_since(started)
+        return C
+
+    @property
+    def prior_pending(self) -> bool:
+        """Whether the maps will still change without an edit (a prior being computed): never here."""
+        return False
+
+    def settle(self) -> None:
+        """Finish what the maps still wait for (nothing here), so that they are final for the current curves."""
+
+    def _priors(self) -> tuple[Prior | None, Prior | None]:
+        """Maps the solutions (``C_MN``, ``C_NM``) are pulled towards: none in the paper's energy."""
+        return None, None
+
+    def _sized(self, C: np.ndarray) -> np.ndarray:
+        """The solved map as the solver hands it out: the whole k x k map in the paper's energy."""
         return C
 
     def energy(self, C_MN: np.ndarray) -> float:

@@ -28,7 +28,7 @@ from curvefm.pointwise.neighbors import (
     nearest_neighbors,
     uses_approximate,
 )
-from curvefm.pointwise.quality import MapQuality, compare, measure
+from curvefm.pointwise.quality import MapQuality, compare, edge_stretch, measure
 from curvefm.pointwise.refinement import bases_with, initial_maps, spread_samples, unit_area
 from curvefm.pointwise.sampled import (
     AUTO_SAMPLES,
@@ -56,6 +56,7 @@ __all__ = [
     "closest_on_triangles",
     "closest_points",
     "compare",
+    "edge_stretch",
     "fit_fmap",
     "fmap_from_pointwise",
     "geodesic_embedding",

@@ -9,6 +9,10 @@
 * ``inverse_deviation``: ``||C_NM C_MN - I||_F / sqrt(k)`` for the k x k functional maps the pointwise maps
   induce (0: inverse to each other on the first k frequencies).
 
+``edge_stretch`` (one direction, for choosing between candidate maps): the mean length of the images of a shape's
+edges over their mean length, in units of each shape's sqrt(area) (about 1 for a smooth map; seams where a region
+lands flipped or elsewhere stretch edges across the target and raise it).
+
 Distances are measured on the shapes scaled to unit area, so the figures do not depend on units.
 :func:`compare` decides whether a refined map is worse than its start, figure by figure.
 """
@@ -21,6 +25,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from curvefm.geometry import Mesh
 from curvefm.pointwise.conversion import PointwiseMaps, fmap_from_pointwise
 from curvefm.spectral import ShapePair
 
@@ -75,6 +80,15 @@ def inverse_deviation(pair: ShapePair, maps: PointwiseMaps) -> float:
     C_MN = fmap_from_pointwise(maps.p2p_NM, pair.basis_M, pair.basis_N, k, k)
     C_NM = fmap_from_pointwise(maps.p2p_MN, pair.basis_N, pair.basis_M, k, k)
     return float(np.linalg.norm(C_NM @ C_MN - np.eye(k)) / np.sqrt(k))
+
+
+def edge_stretch(mesh_from: Mesh, mesh_to: Mesh, p2p: np.ndarray) -> float:
+    """How far the images of ``mesh_from``'s edges under ``p2p`` (a vertex of ``mesh_to`` per vertex) are apart,
+    on average, relative to the edges themselves, each shape scaled to unit area."""
+    a, b = mesh_from.edges.T
+    before = np.linalg.norm(mesh_from.vertices[a] - mesh_from.vertices[b], axis=1).mean() / np.sqrt(mesh_from.area)
+    after = np.linalg.norm(mesh_to.vertices[p2p[a]] - mesh_to.vertices[p2p[b]], axis=1).mean() / np.sqrt(mesh_to.area)
+    return float(after / before)
 
 
 def compare(refined: MapQuality, start: MapQuality) -> list[str]:

@@ -49,6 +49,18 @@ class MapSummary(BaseModel):
 
 
 @dataclass(frozen=True)
+class Transferred:
+    """A function carried to the target: float32 ``rows`` per target vertex (internal order), the session
+    ``revision`` they reflect, the milliseconds spent solving the map for them (0 when an earlier read had solved
+    it), and whether the map will still improve without an edit (``prior_pending``: read again shortly)."""
+
+    rows: np.ndarray
+    revision: int
+    solve_ms: float
+    prior_pending: bool
+
+
+@dataclass(frozen=True)
 class MapQuality:
     """How far the live maps are from being each other's inverse (:mod:`curvefm.fmap.round_trip`): ``drift`` per
     target vertex (float32, internal order, units of ``sqrt(area)``), its area-weighted mean ``score``, and the
@@ -158,24 +170,25 @@ class SessionEditor:
 
     # -- maps and transfer --------------------------------------------------------------------------------
     def maps(self, session_id: str) -> tuple[np.ndarray, np.ndarray, SessionRecord]:
-        """``(C_MN, C_NM, record)``: both maps and the record they reflect."""
+        """``(C_MN, C_NM, record)``: both final maps (their landmark prior computed) and the record they reflect."""
         with self.live.using(session_id) as live:
+            live.solver.settle()
             return live.solver.C_MN, live.solver.C_NM, live.record
 
     def transfer(
         self, session_id: str, function: TransferFunction, vertices: list[int] | None = None
-    ) -> tuple[np.ndarray, int, float]:
-        """``function`` on the source carried to the target: float32 rows per target vertex (internal
-        order), the session revision it reflects, and the milliseconds spent solving the map for it (0 when
-        an earlier read had solved it)."""
+    ) -> Transferred:
+        """``function`` on the source carried to the target through the live map (see :class:`Transferred`)."""
         with self.live.using(session_id) as live:
-            solving = "MN" in live.solver.pending
+            # pending first: a prior landing between the two reads then costs the client one more read, not the map
+            prior_pending, solving = live.solver.prior_pending, "MN" in live.solver.pending
             C_MN, revision = live.solver.C_MN, live.record.revision
             solve_ms = live.solver.last_solve_ms if solving else 0.0
         key = (function, tuple(vertices or ()))
         carried = live.transfers.get(key, lambda: _projected(live, function, vertices))
         values = carried.apply(C_MN)
-        return np.ascontiguousarray(values.reshape(len(values), -1), dtype=np.float32), revision, solve_ms
+        rows = np.ascontiguousarray(values.reshape(len(values), -1), dtype=np.float32)
+        return Transferred(rows, revision, solve_ms, prior_pending)
 
     def quality(self, session_id: str) -> MapQuality:
         """The round-trip quality of the live maps. It needs ``C_NM``, which an interactive solver solves now if

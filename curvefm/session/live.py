@@ -17,6 +17,7 @@ write.
 
 from __future__ import annotations
 
+import os
 import threading
 import zlib
 from collections.abc import Iterator
@@ -69,6 +70,9 @@ class LiveSessions:
         self._sessions: LRU[LiveSession] = LRU(size)
         self._locks = tuple(threading.Lock() for _ in range(LOCK_STRIPES))
         self._executor = ThreadPoolExecutor(2, thread_name_prefix="curvefm-columns")
+        # one thread for every session's landmark prior (0.3-1.5 s each), at low priority, so that it never delays
+        # a column solve or a trace
+        self._prior_executor = ThreadPoolExecutor(1, thread_name_prefix="curvefm-priors", initializer=_lower_priority)
 
     def lock(self, session_id: str) -> threading.Lock:
         """The lock to hold while using or changing session ``session_id``."""
@@ -125,6 +129,7 @@ class LiveSessions:
         """Forget every live session and stop the solvers' executor."""
         self._sessions.clear()
         self._executor.shutdown()
+        self._prior_executor.shutdown(cancel_futures=True)
 
     def _current(self, session_id: str) -> LiveSession:
         """The live session as of its record on disk: built when not cached, brought up to date when another
@@ -142,7 +147,17 @@ class LiveSessions:
         pair = ShapePair(*meshes, self.basis(need_M), self.basis(need_N))
         # an edit solves only the map the texture needs, on one thread: with the cores shared (other sessions,
         # or the browser in bench_ui_latency) that took the solve from 11-13 to 8 ms
-        solver = build_solver(record, pair, interactive=True, executor=self._executor)
+        solver = build_solver(
+            record, pair, interactive=True, executor=self._executor, prior_executor=self._prior_executor
+        )
         for mesh in pair.meshes:
             mesh.edge_graph  # noqa: B018  (cached property: built here so the first trace answers at once)
         return LiveSession(record, pair, solver, LRU(8))
+
+
+def _lower_priority() -> None:
+    """Run the calling thread at nice 10 (Linux schedules threads one by one; elsewhere nothing changes)."""
+    try:
+        os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 10)
+    except (AttributeError, OSError):
+        pass

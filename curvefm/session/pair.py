@@ -72,9 +72,15 @@ SOLVERS: dict[str, type[CurveMapSolver]] = {"curves": CurveMapSolver, "combined"
 
 
 def build_solver(
-    record: SessionRecord, pair: ShapePair, interactive: bool = False, executor: Executor | None = None
+    record: SessionRecord,
+    pair: ShapePair,
+    interactive: bool = False,
+    executor: Executor | None = None,
+    prior_executor: Executor | None = None,
 ) -> CurveMapSolver:
-    """The session's solver (of the record's energy) with all its curves, under the same curve ids as in the record."""
+    """The session's solver (of the record's energy) with all its curves, under the same curve ids as in the record.
+    ``prior_executor``: where the combined energy computes its landmark prior (see :class:`CombinedMapSolver`)."""
+    background = {"prior_executor": prior_executor} if record.energy == "combined" else {}
     solver = SOLVERS[record.energy](
         pair.mesh_M.vertices,
         pair.basis_M,
@@ -85,6 +91,7 @@ def build_solver(
         samples=record.samples,
         interactive=interactive,
         executor=executor,
+        **background,
     )
     if record.curves:
         curves = [(*internal_paths(pair, curve), curve.spec.weight) for curve in record.curves]

@@ -88,14 +88,21 @@ export const api = {
   deleteCurve: (id, curveId) => request("DELETE", `/sessions/${enc(id)}/curves/${enc(curveId)}`),
   map: (id) => request("GET", `/sessions/${enc(id)}/map`),
   /** function: uv | xyz | indicator (with vertices: source file ids). Resolves to { values, columns, revision,
-   * solveMs } (solveMs: the time the service spent solving the map for this read; 0 when already solved). */
+   * solveMs, priorPending } (solveMs: the time the service spent solving the map for this read, 0 when already
+   * solved; priorPending: the map of this revision will still improve once the landmark prior lands). */
   async transfer(id, fn, vertices = null) {
     const query = new URLSearchParams({ function: fn });
     if (vertices) query.set("vertices", vertices.join(","));
     const { buffer, headers } = await request("GET", `/sessions/${enc(id)}/transfer?${query}`, { as: "binary" });
     const columns = Number(headers.get("X-Shape").split(",")[1]);
     const revision = Number(headers.get("X-Revision"));
-    return { values: new Float32Array(buffer), columns, revision, solveMs: Number(headers.get("X-Solve-Ms")) };
+    return {
+      values: new Float32Array(buffer),
+      columns,
+      revision,
+      solveMs: Number(headers.get("X-Solve-Ms")),
+      priorPending: headers.get("X-Prior-Pending") === "true",
+    };
   },
   /** The live maps' round trip per target vertex (see GET /sessions/{id}/quality): { drift: Float32Array,
    * score, worstTarget, worstSource (file ids), revision }. */

@@ -8,6 +8,7 @@ import { showStatus } from "../views/page.js";
 import { paint, showSource, sourceValues, viewports } from "../views/viewports.js";
 
 const COLUMNS = { uv: 2, xyz: 3, indicator: 1 };
+const PRIOR_POLL_MS = 600; // the landmark prior takes about a second after an edit
 
 /** The chosen function carried to the target (rows per target vertex), through the live map from the service
  * or through the refined pointwise map; null when a newer request started meanwhile (its answer wins). */
@@ -27,8 +28,24 @@ export async function carriedFunction() {
     return { rows: pullBack(sourceValues(fn), COLUMNS[fn], state.pointwise.p2p), solveMs: 0 };
   }
   const vertices = fn === "indicator" ? state.region.fileIds : null;
-  const { values, solveMs } = await api.transfer(state.session.id, fn, vertices);
-  return ticket === state.transferTicket ? { rows: values, solveMs } : null;
+  const { values, solveMs, priorPending } = await api.transfer(state.session.id, fn, vertices);
+  if (ticket !== state.transferTicket) return null;
+  if (priorPending) showWhenPriorLands(ticket);
+  return { rows: values, solveMs };
+}
+
+/** The service is still computing the landmark prior for the current curves: show the better map when it lands
+ * (unless something newer has been asked for meanwhile). */
+function showWhenPriorLands(ticket) {
+  setTimeout(async () => {
+    if (ticket !== state.transferTicket) return;
+    try {
+      const rows = await carriedRows();
+      if (rows !== null) paint("target", state.fn, rows);
+    } catch {
+      // a refresh in the background: a lost connection has its banner, and the next change shows the map
+    }
+  }, PRIOR_POLL_MS);
 }
 
 /** Paint the source and the carried function on the target; with the click's time, record how long it took
