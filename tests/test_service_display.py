@@ -18,10 +18,9 @@ K = 30
 CURVES = ({"source": [412, 5891], "target": [412, 5891]}, {"source": [3057, 6617], "target": [3057, 6617]})
 
 
-@pytest.fixture(scope="module")
-def server(module_processes, tmp_path_factory, shared_data):
-    folder = tmp_path_factory.mktemp("display")
-    api = module_processes.api(folder / "data", env={"CURVEFM_DISPLAY_VERTICES": str(THRESHOLD)})
+def display_server(processes, folder, shared_data):
+    """An API whose FAUST pair (tr_reg_000 -> tr_reg_011) is drawn coarse, with a session of two curves."""
+    api = processes.api(folder / "data", env={"CURVEFM_DISPLAY_VERTICES": str(THRESHOLD)})
     api.shapes = [api.upload(shared_data / "faust" / f"tr_reg_{n}.off") for n in ("000", "011")]
     for shape_id in api.shapes:
         job = api.client.post(f"/shapes/{shape_id}/bases", json={"k": K}).raise_for_status().json()
@@ -31,6 +30,11 @@ def server(module_processes, tmp_path_factory, shared_data):
     for curve in CURVES:
         api.client.post(f"/sessions/{api.session}/curves", json=curve).raise_for_status()
     return api
+
+
+@pytest.fixture(scope="module")
+def server(module_processes, tmp_path_factory, shared_data):
+    return display_server(module_processes, tmp_path_factory.mktemp("display"), shared_data)
 
 
 def decode(payload: bytes) -> tuple[dict, dict[str, np.ndarray]]:
