@@ -38,6 +38,14 @@ def test_faces_are_proper_and_every_display_vertex_is_used(copy):
     assert len(np.unique(np.sort(faces, axis=1), axis=0)) == len(faces)
 
 
+def test_a_closed_consistently_wound_mesh_gives_a_closed_consistently_wound_copy(faust, copy):
+    """What lets the UI draw the copy from its outer side only: each edge has two faces, run once each way."""
+    for faces in (faust.faces, copy.faces):
+        directed = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+        assert len(np.unique(directed, axis=0)) == len(directed)
+        assert np.all(np.unique(np.sort(directed, axis=1), axis=0, return_counts=True)[1] == 2)
+
+
 def test_the_copy_follows_the_surface_and_keeps_its_winding(faust, copy):
     vertices = faust.vertices[copy.vertex_ids]
     on_copy = closest_point_weights(faust.vertices, vertices, copy.faces) @ vertices
