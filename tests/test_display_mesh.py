@@ -3,7 +3,9 @@
 import numpy as np
 import pytest
 
-from curvefm.geometry import closest_point_weights, display_copy, display_mesh, load_mesh
+from curvefm.geometry import closest_point_weights, display_mesh, load_mesh
+from curvefm.session import LiveSessions, SessionStore
+from curvefm.store import Store
 
 TARGET = 3000
 
@@ -78,7 +80,12 @@ def test_the_copy_is_the_same_every_time(faust, copy):
     np.testing.assert_array_equal(again.faces, copy.faces)
 
 
-def test_display_copy_is_made_once_and_only_for_big_meshes(faust):
-    assert display_copy(faust, faust.n_vertices) is None and display_copy(faust, 0) is None
-    first = display_copy(faust, TARGET)
-    assert first is display_copy(faust, TARGET) and len(first.vertex_ids) < faust.n_vertices
+def test_live_sessions_make_a_display_copy_once_and_only_for_big_meshes(tmp_path, faust):
+    store = Store(tmp_path)
+    store.put_mesh(faust)
+    shape = faust.content_hash
+    live = LiveSessions(store, SessionStore(tmp_path), display_vertices=TARGET)
+    first = live.display(shape)
+    assert first is live.display(shape) and len(first.vertex_ids) < faust.n_vertices
+    for threshold in (0, faust.n_vertices):  # 0: never; a mesh of the threshold's size is drawn whole
+        assert LiveSessions(store, SessionStore(tmp_path), display_vertices=threshold).display(shape) is None

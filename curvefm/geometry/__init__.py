@@ -4,7 +4,7 @@ geodesic distances, farthest-point sampling, decimation, display copies of big m
 """
 
 from curvefm.geometry.decimation import closest_point_weights, decimate
-from curvefm.geometry.display import DisplayMesh, display_copy, display_mesh
+from curvefm.geometry.display import DisplayMesh, display_mesh
 from curvefm.geometry.geodesics import (
     DEFAULT_CHUNK_BYTES,
     checked_ids,
@@ -43,7 +43,6 @@ __all__ = [
     "closest_point_weights",
     "cotangent_laplacian",
     "decimate",
-    "display_copy",
     "display_mesh",
     "cylindrical_uv",
     "edge_keys",

@@ -68,14 +68,6 @@ def display_mesh(mesh: Mesh, vertex_count: int) -> DisplayMesh:
     return DisplayMesh(vertex_ids, rows.reshape(-1, 3), nearest.astype(np.int64), mesh.n_vertices)
 
 
-def display_copy(mesh: Mesh, max_vertices: int) -> DisplayMesh | None:
-    """The display copy of a mesh with more than ``max_vertices`` vertices (about that many), made once per mesh
-    and kept with it (:attr:`Mesh.derived`); ``None`` for a mesh drawn whole (or ``max_vertices`` 0: never)."""
-    if max_vertices <= 0 or mesh.n_vertices <= max_vertices:
-        return None
-    return mesh.derived.get(("display", max_vertices), lambda: display_mesh(mesh, max_vertices))
-
-
 def _distinct_nearest(tree: cKDTree, points: np.ndarray, candidates: int = 8) -> np.ndarray:
     """A different vertex of the tree for each point (fewer points than vertices): points choose in the order of
     their distance to the nearest vertex, each the nearest vertex still free."""
