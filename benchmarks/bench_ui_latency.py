@@ -10,7 +10,8 @@ web UI in headless Chromium (WebGL through SwiftShader, i.e. drawn on the CPU). 
   the curve to the moment the frame with the new texture has been drawn (a WebGL fence after the draw has
   signalled): the POST of the curve (trace both paths, update both maps, store the session), the GET of the
   carried texture coordinates, the attribute update and the draw. Reports p50 / p95 and the parts.
-* ``responsiveness`` (TOSCA david0 -> david1, 52565 vertices): the longest main-thread task
+* ``responsiveness`` (TOSCA david0 -> david1, 52565 vertices; with ``--scan-level``, the scan pair): the longest
+  main-thread task
   (``PerformanceObserver('longtask')``) and the longest gap between animation frames while the session loads
   and while ``--large-curves`` curves are added; the page counts as frozen from a gap of 1 s.
 
@@ -138,7 +139,9 @@ def measure_latency(browser, url: str, token: str, session_id: str, n_vertices: 
     }
 
 
-def measure_responsiveness(browser, url: str, token: str, session_id: str, n_vertices: int, curves: int) -> dict:
+def measure_responsiveness(
+    browser, url: str, token: str, session_id: str, n_vertices: int, curves: int, pair: str
+) -> dict:
     page = browser.new_page(viewport=VIEWPORT)
     page.add_init_script(MONITOR_JS)
     started = time.perf_counter()
@@ -151,7 +154,7 @@ def measure_responsiveness(browser, url: str, token: str, session_id: str, n_ver
     editing = page.evaluate("({ longest: Math.max(0, ...curvefmMonitor.longTasks), maxGap: curvefmMonitor.maxGap })")
     page.close()
     return {
-        "pair": "/".join(LARGE_PAIR),
+        "pair": pair,
         "vertices": n_vertices,
         "load_to_first_texture_s": round(load_s, 2),
         "loading": {"longest_task_ms": round(loading["longest"]), "max_frame_gap_ms": round(loading["maxGap"])},
@@ -210,19 +213,24 @@ def measure_scan_reads(client: httpx.Client, level: int, reads: int) -> dict:
     }
 
 
+def pair_files(scan_level: int, tosca_pair: tuple[str, str]) -> tuple[list[tuple[str, bytes]], str]:
+    """The files of FAUST subdivided ``scan_level`` times, or of a TOSCA pair, and the pair's name."""
+    if scan_level:
+        return subdivided_faust(scan_level), f"FAUST {'/'.join(SCAN_PAIR)} x{scan_level}"
+    return tosca_files(tosca_pair), "/".join(tosca_pair)
+
+
 def measure_in_browser(browser, client: httpx.Client, url: str, token: str, args: argparse.Namespace) -> dict:
     """The latency (unless ``--curves 0``) and the responsiveness (unless ``--no-large``) sections."""
     result = {}
     if args.curves:
-        if args.scan_level:
-            files, pair = subdivided_faust(args.scan_level), f"FAUST {'/'.join(SCAN_PAIR)} x{args.scan_level}"
-        else:
-            files, pair = tosca_files(LATENCY_PAIR), "/".join(LATENCY_PAIR)
+        files, pair = pair_files(args.scan_level, LATENCY_PAIR)
         session_id, n = prepare_session(client, files)
         result["latency"] = measure_latency(browser, url, token, session_id, n, args.curves, pair)
     if not args.no_large:
-        session_id, n = prepare_session(client, tosca_files(LARGE_PAIR))
-        result["responsiveness"] = measure_responsiveness(browser, url, token, session_id, n, args.large_curves)
+        files, pair = pair_files(args.scan_level, LARGE_PAIR)
+        session_id, n = prepare_session(client, files)
+        result["responsiveness"] = measure_responsiveness(browser, url, token, session_id, n, args.large_curves, pair)
     return result
 
 
