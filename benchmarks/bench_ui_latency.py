@@ -10,19 +10,27 @@ web UI in headless Chromium (WebGL through SwiftShader, i.e. drawn on the CPU). 
   the curve to the moment the frame with the new texture has been drawn (a WebGL fence after the draw has
   signalled): the POST of the curve (trace both paths, update both maps, store the session), the GET of the
   carried texture coordinates, the attribute update and the draw. Reports p50 / p95 and the parts.
-* ``responsiveness`` (TOSCA david0 -> david1, 52565 vertices): the longest main-thread task
+* ``responsiveness`` (TOSCA david0 -> david1, 52565 vertices; with ``--scan-level``, the scan pair): the longest
+  main-thread task
   (``PerformanceObserver('longtask')``) and the longest gap between animation frames while the session loads
   and while ``--large-curves`` curves are added; the page counts as frozen from a gap of 1 s.
 
 ``--scan-level L`` measures ``latency`` on FAUST tr_reg_000 -> tr_reg_011 subdivided L times instead
 (``trimesh.remesh.subdivide``, generated at run time and uploaded as PLY, never written to disk: 110,210 vertices
-for L = 2, where issue 14's budget is p95 <= 150 ms).
+for L = 2, where issue 14's budget is p95 <= 150 ms). Shapes above the server's ``CURVEFM_DISPLAY_VERTICES``
+(default 50,000) are drawn as display copies; set it to 0 in the environment to draw them whole.
+
+``--transfer-levels L ...`` times, without the browser, what the page reads of FAUST subdivided L times (2:
+110,210 vertices, 3: 440,834): ``GET /sessions/{id}/transfer?function=uv`` with one row per vertex
+(``resolution=full``) and per display vertex (``resolution=display``), interleaved, after a read that solved the
+map; and the gzipped bytes of ``GET /shapes/{id}/mesh`` for the display copy and the whole mesh, with the time of
+the first request for the copy (which makes it).
 
 Endpoints are pairs of vertices visible on both shapes with the same id (TOSCA poses of one class, and FAUST
 registrations, correspond by id), sampled on a grid over the source canvas, at least 120 pixels apart. Prints JSON.
 
 Usage: ``python benchmarks/bench_ui_latency.py [--data DIR] [--curves N] [--large-curves M] [--no-large]
-[--scan-level L]``
+[--scan-level L] [--transfer-levels L ...] [--transfer-reads N]``
 """
 
 from __future__ import annotations
@@ -131,7 +139,9 @@ def measure_latency(browser, url: str, token: str, session_id: str, n_vertices: 
     }
 
 
-def measure_responsiveness(browser, url: str, token: str, session_id: str, n_vertices: int, curves: int) -> dict:
+def measure_responsiveness(
+    browser, url: str, token: str, session_id: str, n_vertices: int, curves: int, pair: str
+) -> dict:
     page = browser.new_page(viewport=VIEWPORT)
     page.add_init_script(MONITOR_JS)
     started = time.perf_counter()
@@ -144,7 +154,7 @@ def measure_responsiveness(browser, url: str, token: str, session_id: str, n_ver
     editing = page.evaluate("({ longest: Math.max(0, ...curvefmMonitor.longTasks), maxGap: curvefmMonitor.maxGap })")
     page.close()
     return {
-        "pair": "/".join(LARGE_PAIR),
+        "pair": pair,
         "vertices": n_vertices,
         "load_to_first_texture_s": round(load_s, 2),
         "loading": {"longest_task_ms": round(loading["longest"]), "max_frame_gap_ms": round(loading["maxGap"])},
@@ -158,13 +168,81 @@ def measure_responsiveness(browser, url: str, token: str, session_id: str, n_ver
     }
 
 
+def ms_since(started: float) -> float:
+    return (time.perf_counter() - started) * 1000
+
+
+def mesh_payloads(client: httpx.Client, shape_id: str) -> dict:
+    """Bytes on the wire (gzipped) of the target's mesh payload, display copy and whole; the first request for the
+    copy makes it."""
+    found = {}
+    for resolution in ("display", "full"):
+        started = time.perf_counter()
+        response = client.get(f"/shapes/{shape_id}/mesh", params={"resolution": resolution}).raise_for_status()
+        found[resolution] = {"wire_bytes": response.num_bytes_downloaded, "first_request_ms": round(ms_since(started))}
+    return found
+
+
+def measure_transfer(client: httpx.Client, session_id: str, reads: int) -> dict:
+    """Round trips of the uv transfer with full and display rows, interleaved, after one read of each."""
+    url, times, rows = f"/sessions/{session_id}/transfer", {"full": [], "display": []}, {}
+    for read in range(reads + 1):
+        for resolution in times:
+            started = time.perf_counter()
+            response = client.get(url, params={"function": "uv", "resolution": resolution}).raise_for_status()
+            if read:
+                times[resolution].append(ms_since(started))
+            rows[resolution] = int(response.headers["X-Shape"].split(",")[0])
+    return {
+        resolution: {"rows": rows[resolution], "p50_ms": percentile(ms, 50), "p95_ms": percentile(ms, 95)}
+        for resolution, ms in times.items()
+    }
+
+
+def measure_scan_reads(client: httpx.Client, level: int, reads: int) -> dict:
+    """What the page reads of FAUST subdivided ``level`` times: the transfer and the mesh payloads."""
+    session_id, n = prepare_session(client, subdivided_faust(level))
+    record = client.get(f"/sessions/{session_id}").raise_for_status().json()
+    ends = [0, n // 2]  # any two vertices: the map's content does not change the cost of reading it
+    client.post(f"/sessions/{session_id}/curves", json={"source": ends, "target": ends}).raise_for_status()
+    return {
+        "level": level,
+        "vertices": n,
+        "mesh_payload": mesh_payloads(client, record["target"]),
+        "transfer_uv": measure_transfer(client, session_id, reads),
+    }
+
+
+def pair_files(scan_level: int, tosca_pair: tuple[str, str]) -> tuple[list[tuple[str, bytes]], str]:
+    """The files of FAUST subdivided ``scan_level`` times, or of a TOSCA pair, and the pair's name."""
+    if scan_level:
+        return subdivided_faust(scan_level), f"FAUST {'/'.join(SCAN_PAIR)} x{scan_level}"
+    return tosca_files(tosca_pair), "/".join(tosca_pair)
+
+
+def measure_in_browser(browser, client: httpx.Client, url: str, token: str, args: argparse.Namespace) -> dict:
+    """The latency (unless ``--curves 0``) and the responsiveness (unless ``--no-large``) sections."""
+    result = {}
+    if args.curves:
+        files, pair = pair_files(args.scan_level, LATENCY_PAIR)
+        session_id, n = prepare_session(client, files)
+        result["latency"] = measure_latency(browser, url, token, session_id, n, args.curves, pair)
+    if not args.no_large:
+        files, pair = pair_files(args.scan_level, LARGE_PAIR)
+        session_id, n = prepare_session(client, files)
+        result["responsiveness"] = measure_responsiveness(browser, url, token, session_id, n, args.large_curves, pair)
+    return result
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--data", default=os.environ.get("CURVEFM_BENCH_DATA", "/tmp/curvefm-bench"))
-    parser.add_argument("--curves", type=int, default=20)
+    parser.add_argument("--curves", type=int, default=20, help="0: no latency run (with --no-large: no browser)")
     parser.add_argument("--large-curves", type=int, default=3)
     parser.add_argument("--no-large", action="store_true", help="skip the 50k-vertex responsiveness check")
     parser.add_argument("--scan-level", type=int, default=0, help="latency on FAUST subdivided this many times")
+    parser.add_argument("--transfer-levels", type=int, nargs="*", default=[], help="time the reads at these levels")
+    parser.add_argument("--transfer-reads", type=int, default=40)
     args = parser.parse_args()
     if not CHROMIUM.is_file():
         sys.exit(f"benchmark needs Chromium at {CHROMIUM} (set CURVEFM_CHROMIUM)")
@@ -175,20 +253,15 @@ def main() -> None:
     try:
         client = httpx.Client(base_url=url, timeout=600, headers=headers)
         result = {"machine": {**machine(), "load_average_1min": os.getloadavg()[0]}, "renderer": "SwiftShader"}
-        with sync_playwright() as playwright:
-            browser = launch(playwright)
-            if args.scan_level:
-                files, pair = subdivided_faust(args.scan_level), f"FAUST {'/'.join(SCAN_PAIR)} x{args.scan_level}"
-            else:
-                files, pair = tosca_files(LATENCY_PAIR), "/".join(LATENCY_PAIR)
-            session_id, n = prepare_session(client, files)
-            result["latency"] = measure_latency(browser, url, token, session_id, n, args.curves, pair)
-            if not args.no_large:
-                session_id, n = prepare_session(client, tosca_files(LARGE_PAIR))
-                result["responsiveness"] = measure_responsiveness(
-                    browser, url, token, session_id, n, args.large_curves
-                )
-            browser.close()
+        if args.curves or not args.no_large:
+            with sync_playwright() as playwright:
+                browser = launch(playwright)
+                result.update(measure_in_browser(browser, client, url, token, args))
+                browser.close()
+        reads = [measure_scan_reads(client, level, args.transfer_reads) for level in args.transfer_levels]
+        if reads:
+            result["scan_reads"] = reads
+        result["machine"]["load_average_1min_end"] = os.getloadavg()[0]
         print(json.dumps(result, indent=1))
     finally:
         server.terminate()

@@ -1,9 +1,10 @@
 """Request and response models of the HTTP API (they are its OpenAPI schema at ``/docs``).
 
 Vertex ids in requests and responses are **file** ids (0-based, as in the uploaded file), except in the
-binary mesh and transfer payloads, whose rows follow the mesh's internal vertex order (``file_ids`` in the
-mesh payload translates). The session models the API shares with the core (``SessionCreate``, ``SessionRecord``,
-``CurveSpec``, ``CurveRecord``, ``MapSummary``) are defined in :mod:`curvefm.session`.
+binary mesh and transfer payloads, whose rows follow the mesh's internal vertex order, or the rows of a big
+shape's display copy (``file_ids`` in the mesh payload translates). The session models the API shares with the
+core (``SessionCreate``, ``SessionRecord``, ``CurveSpec``, ``CurveRecord``, ``MapSummary``) are defined in
+:mod:`curvefm.session`.
 """
 
 from __future__ import annotations
@@ -113,6 +114,11 @@ class MapResponse(BaseModel):
                    "energy has fewer than 10 curves (their higher frequencies are not yet determined)")
     C_source_to_target: list[list[float]] = Field(description="C_MN: coefficients on M -> coefficients on N")
     C_target_to_source: list[list[float]] = Field(description="C_NM")
+
+
+class PointsRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    vertices: list[VertexId] = Field(min_length=1, description="file ids of the vertices asked for")
 
 
 class SessionChange(BaseModel):

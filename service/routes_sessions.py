@@ -168,6 +168,10 @@ def _float32_rows(headers: dict) -> dict:
 
 
 FILE_IDS = r"^[0-9]{1,10}(,[0-9]{1,10})*$"  # ten digits at most: no id beyond int64 reaches numpy
+RESOLUTION = Query(
+    description="full: a row per target vertex; display: a row per vertex of the target as GET "
+    "/shapes/{id}/mesh draws it (its display copy when it has one), as the web UI asks"
+)
 TRANSFER_HEADERS = {
     "X-Shape": {"description": "n,d: rows (target vertices) and values per row", "schema": {"type": "string"}},
     "X-Revision": {"description": "the session revision the map had", "schema": {"type": "string"}},
@@ -193,15 +197,21 @@ def get_transfer(
         str | None,
         Query(pattern=FILE_IDS, description="for function=indicator: comma-separated source file ids"),
     ] = None,
+    resolution: Annotated[Literal["full", "display"], RESOLUTION] = "full",
 ) -> Response:
     """A function on the source carried to the target through the current map: float32 little-endian,
-    ``n x d`` row-major with one row per target vertex in internal order (as ``GET /shapes/{id}/mesh``).
-    Headers: ``X-Shape: n,d``, ``X-Revision``, ``X-Solve-Ms`` (the map is solved on its first read after
-    an edit) and ``X-Prior-Pending``. ``uv``: the source's texture coordinates (or generated
-    cylindrical ones); ``xyz``: source coordinates scaled to [0, 1] per axis; ``indicator``: 1 on
-    ``vertices``, 0 elsewhere."""
+    ``n x d`` row-major with one row per target vertex in internal order. Headers: ``X-Shape: n,d``,
+    ``X-Revision``, ``X-Solve-Ms`` (the map is solved on its first read after an edit) and ``X-Prior-Pending``.
+    ``uv``: the source's texture coordinates (or generated cylindrical ones); ``xyz``: source coordinates scaled
+    to [0, 1] per axis; ``indicator``: 1 on ``vertices``, 0 elsewhere.
+
+    ``resolution=display``: one row per vertex that ``GET /shapes/{id}/mesh`` draws (for a big target, the rows of
+    its display copy, in its order: the same values as the full rows at its ``vertex_ids``, and much cheaper to
+    compute), and the indicator's ``vertices``, picked on the source as drawn, each stand for the part of the
+    source nearest to them (so a region picked on a display copy covers the surface it shows). The default,
+    ``full``, gives every row whatever the size."""
     session_for(services, user, session_id, "read")
-    carried = services.sessions.transfer(session_id, function, _parse_ids(vertices))
+    carried = services.sessions.transfer(session_id, function, _parse_ids(vertices), display=resolution == "display")
     values = carried.rows
     headers = {
         "X-Shape": f"{values.shape[0]},{values.shape[1]}",
@@ -231,15 +241,21 @@ QUALITY_HEADERS = {
 
 
 @router.get("/sessions/{session_id}/quality", response_class=Response, responses=_float32_rows(QUALITY_HEADERS))
-def get_quality(session_id: str, services: ServicesDep, user: CurrentUser) -> Response:
+def get_quality(
+    session_id: str,
+    services: ServicesDep,
+    user: CurrentUser,
+    resolution: Annotated[Literal["full", "display"], RESOLUTION] = "full",
+) -> Response:
     """How well the live maps agree, without ground truth: each target vertex carried to the source by ``C_NM``
     and back by ``C_MN`` should land where it started; how far it lands (its *drift*, in units of the target's
-    sqrt(area)) is returned as float32 little-endian, one row per target vertex in internal order (as
-    ``GET /shapes/{id}/mesh``). Large drift marks where no curve constrains the maps yet: the vertex that drifts
-    furthest on each shape (headers ``X-Worst-Target``, ``X-Worst-Source``, file ids) is where a new curve helps
-    most. ``X-Score`` is the area-weighted mean drift on the target; ``X-Revision`` the session revision."""
+    sqrt(area)) is returned as float32 little-endian, one row per target vertex in internal order (with
+    ``resolution=display``, per vertex that ``GET /shapes/{id}/mesh`` draws, as for the transfer). Large drift
+    marks where no curve constrains the maps yet: the vertex that drifts furthest on each shape (headers
+    ``X-Worst-Target``, ``X-Worst-Source``, file ids, of the whole shapes) is where a new curve helps most.
+    ``X-Score`` is the area-weighted mean drift on the whole target; ``X-Revision`` the session revision."""
     session_for(services, user, session_id, "read")
-    quality = services.sessions.quality(session_id)
+    quality = services.sessions.quality(session_id, display=resolution == "display")
     headers = {
         "X-Shape": f"{len(quality.drift)},1",
         "X-Revision": str(quality.revision),

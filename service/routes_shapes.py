@@ -12,16 +12,16 @@ from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
-from fastapi import APIRouter, File, Form, Request, Response, UploadFile
+from fastapi import APIRouter, File, Form, Query, Request, Response, UploadFile
 
 from curvefm.access import User
 from curvefm.cache import LRU
 from curvefm.errors import InvalidInput
-from curvefm.geometry import SUPPORTED_FORMATS, Mesh, load_mesh, texture_coordinates
+from curvefm.geometry import SUPPORTED_FORMATS, DisplayMesh, Mesh, load_mesh, texture_coordinates
 from curvefm.service.auth import AUTHENTICATED, CurrentUser
 from curvefm.service.deps import JOB_ERRORS, Services, ServicesDep, job_model, submit_basis
 from curvefm.service.errors import error_responses, require_plugin
-from curvefm.service.models import BasisInfo, BasisRequest, JobInfoModel, ShapeInfo
+from curvefm.service.models import BasisInfo, BasisRequest, JobInfoModel, PointsRequest, ShapeInfo
 from curvefm.service.openapi import SchemaRoute
 from curvefm.service.permissions import check_shape_manager, check_unused
 from curvefm.service.quotas import stored_bytes
@@ -36,10 +36,12 @@ UPLOAD_ERRORS = error_responses(
     400, 413, 422, 429, described={400: "not a mesh curvefm reads (the detail says why)"}
 )
 COPY_CHUNK = 1 << 20
+BINARY = {"type": "string", "format": "binary"}
 MESH_FORMAT = "curvefm-mesh-1"
+POINTS_FORMAT = "curvefm-points-1"
 GZIPPED_MESHES: LRU[bytes] = LRU(16)
-"""Binary mesh payloads gzipped once (level 1: about half the bytes, 27 ms for 28k vertices), by shape id: a
-shape's id is its content's hash, so an entry never goes stale."""
+"""Binary mesh payloads gzipped once (level 1: about half the bytes, 27 ms for 28k vertices), by shape id and
+display copy: a shape's id is its content's hash, so an entry never goes stale."""
 
 
 @router.post(
@@ -98,29 +100,70 @@ def get_shape(shape_id: str, services: ServicesDep) -> ShapeInfo:
     responses={200: {"content": {"application/octet-stream": {}, "application/json": {}}}, **ERRORS},
 )
 def get_shape_mesh(
-    shape_id: str, request: Request, services: ServicesDep, format: Literal["binary", "json"] = "binary"
+    shape_id: str,
+    request: Request,
+    services: ServicesDep,
+    format: Literal["binary", "json"] = "binary",
+    resolution: Annotated[
+        Literal["display", "full"],
+        Query(description="display: a big shape's display copy (the default); full: the whole mesh"),
+    ] = "display",
 ) -> Response:
-    """The mesh in internal vertex order, for drawing.
+    """The mesh for drawing: for a shape of more than ``CURVEFM_DISPLAY_VERTICES`` vertices (default 50,000) its
+    *display copy*, a coarser mesh of about that many vertices that are all vertices of the shape; else (or with
+    ``resolution=full``) the whole mesh in internal vertex order.
 
     ``binary`` (default): a little-endian uint32 ``H``, then ``H`` bytes of JSON header (space-padded to a
     multiple of 4), then the arrays back to back. The header's ``arrays`` gives each array's ``dtype``
     (``float32`` or ``uint32``), ``shape`` and byte ``offset`` counted from the end of the header, so
-    ``new Float32Array(buffer, 4 + H + offset, n * 3)`` reads the vertices. Arrays: ``vertices`` (n x 3),
-    ``faces`` (f x 3, internal ids), ``file_ids`` (n: file id of each vertex), ``texcoords`` (n x 2: the
-    texture coordinates the ``uv`` transfer carries, the file's own or generated cylindrical ones) and, if the
-    file had them, ``uv`` (n x 2). ``json``: the same arrays as nested lists.
+    ``new Float32Array(buffer, 4 + H + offset, n * 3)`` reads the vertices; ``display_copy`` says whether this
+    is a display copy and ``shape_vertices`` how many vertices the shape has. Arrays, one row per vertex drawn:
+    ``vertices`` (n x 3), ``faces`` (f x 3, rows of these arrays), ``file_ids`` (n: file id of each vertex),
+    ``texcoords`` (n x 2: the texture coordinates the ``uv`` transfer carries, the file's own or generated
+    cylindrical ones), ``uv`` (n x 2) if the file had them, and for a display copy only ``vertex_ids`` (n: the
+    internal id of each vertex; without it, row i is internal vertex i). The rows of ``GET
+    /sessions/{id}/transfer?resolution=display`` and ``.../quality?resolution=display`` are these rows.
+    ``json``: the same header fields and arrays as nested lists.
 
     The binary form is sent gzipped (``Content-Encoding: gzip``, about half the bytes) to a client that accepts it.
     """
     mesh = services.live.mesh(shape_id)
+    shown = services.live.display(shape_id) if resolution == "display" else None
+    header = {"format": MESH_FORMAT, "name": mesh.name, "display_copy": shown is not None}
+    header["shape_vertices"] = mesh.n_vertices
     if format == "json":
-        arrays = {name: array.tolist() for name, array in _mesh_arrays(mesh).items()}
-        return Response(json.dumps({"format": MESH_FORMAT, "name": mesh.name, **arrays}), media_type="application/json")
+        arrays = {name: array.tolist() for name, array in _mesh_arrays(mesh, shown).items()}
+        return Response(json.dumps({**header, **arrays}), media_type="application/json")
     if "gzip" not in request.headers.get("accept-encoding", ""):
-        return Response(encode_mesh(mesh), media_type="application/octet-stream", headers={"Vary": "Accept-Encoding"})
-    body = GZIPPED_MESHES.get(shape_id, lambda: gzip.compress(encode_mesh(mesh), compresslevel=1, mtime=0))
+        body = encode_arrays(header, _mesh_arrays(mesh, shown))
+        return Response(body, media_type="application/octet-stream", headers={"Vary": "Accept-Encoding"})
+    key = (shape_id, shown.key if shown else None)
+    body = GZIPPED_MESHES.get(
+        key, lambda: gzip.compress(encode_arrays(header, _mesh_arrays(mesh, shown)), compresslevel=1, mtime=0)
+    )
     headers = {"Content-Encoding": "gzip", "Vary": "Accept-Encoding"}
     return Response(body, media_type="application/octet-stream", headers=headers)
+
+
+@router.post(
+    "/shapes/{shape_id}/points",
+    response_class=Response,
+    responses={200: {"content": {"application/octet-stream": {"schema": BINARY}}}, **ERRORS},
+)
+def get_points(shape_id: str, body: PointsRequest, services: ServicesDep) -> Response:
+    """Where some vertices of the shape are (file ids; a POST, as a path's ids overflow a URL), for drawing what
+    names vertices a display copy does not draw: curve paths, the weakest vertex, a pointwise map's images.
+    Answered in the binary layout of ``GET /shapes/{id}/mesh`` with the arrays ``positions`` (n x 3 float32, in
+    the order asked) and ``nearest_row`` (n uint32: the row of the mesh payload's vertex nearest to each, which for
+    a shape drawn whole is the vertex itself). 409 names an id the shape does not have."""
+    mesh = services.live.mesh(shape_id)
+    ids = mesh.internal_ids(body.vertices, "vertex")
+    shown = services.live.display(shape_id)
+    arrays = {
+        "positions": mesh.vertices[ids].astype("<f4"),
+        "nearest_row": (ids if shown is None else shown.nearest[ids]).astype("<u4"),
+    }
+    return Response(encode_arrays({"format": POINTS_FORMAT}, arrays), media_type="application/octet-stream")
 
 
 @router.post(
@@ -179,27 +222,31 @@ def shape_info(services: Services, shape_id: str) -> ShapeInfo:
     )
 
 
-def encode_mesh(mesh: Mesh) -> bytes:
-    arrays = _mesh_arrays(mesh)
+def encode_arrays(header: dict, arrays: dict[str, np.ndarray]) -> bytes:
+    """The binary layout of ``GET /shapes/{id}/mesh``: the header with each array's place, then the arrays."""
     layout, offset = {}, 0
     for name, array in arrays.items():
         layout[name] = {"dtype": array.dtype.name, "shape": list(array.shape), "offset": offset}
         offset += array.nbytes
-    header = json.dumps({"format": MESH_FORMAT, "name": mesh.name, "arrays": layout}).encode()
-    header += b" " * (-len(header) % 4)
-    parts = [np.uint32(len(header)).astype("<u4").tobytes(), header]
+    encoded = json.dumps({**header, "arrays": layout}).encode()
+    encoded += b" " * (-len(encoded) % 4)
+    parts = [np.uint32(len(encoded)).astype("<u4").tobytes(), encoded]
     return b"".join(parts + [array.tobytes() for array in arrays.values()])
 
 
-def _mesh_arrays(mesh: Mesh) -> dict[str, np.ndarray]:
+def _mesh_arrays(mesh: Mesh, shown: DisplayMesh | None) -> dict[str, np.ndarray]:
+    """The per-vertex arrays of the whole mesh, or of its display copy ``shown`` (rows at its vertex ids)."""
+    rows = slice(None) if shown is None else shown.vertex_ids
     arrays = {
-        "vertices": mesh.vertices.astype("<f4"),
-        "faces": mesh.faces.astype("<u4"),
-        "file_ids": mesh.file_ids.astype("<u4"),
-        "texcoords": texture_coordinates(mesh).astype("<f4"),
+        "vertices": mesh.vertices[rows].astype("<f4"),
+        "faces": (mesh.faces if shown is None else shown.faces).astype("<u4"),
+        "file_ids": mesh.file_ids[rows].astype("<u4"),
+        "texcoords": texture_coordinates(mesh)[rows].astype("<f4"),
     }
     if mesh.uv is not None:
-        arrays["uv"] = mesh.uv.astype("<f4")
+        arrays["uv"] = mesh.uv[rows].astype("<f4")
+    if shown is not None:
+        arrays["vertex_ids"] = shown.vertex_ids.astype("<u4")
     return arrays
 
 

@@ -47,6 +47,9 @@ class Settings:
     live_sessions: int = 64
     """Sessions kept live (solver built) in memory; more active sessions than this are rebuilt from disk on
     every edit, which costs tens of milliseconds each."""
+    display_vertices: int = 50_000
+    """A shape with more vertices is drawn in the UI as a display copy of about this many (its vertices a subset
+    of the shape's; ``GET /shapes/{id}/mesh``); 0: every shape is drawn whole."""
     demo: bool = False
     allowed_hosts: tuple[str, ...] = LOOPBACK_NAMES
     """Host header values answered (lower case, no port); ``*`` answers any."""
@@ -146,6 +149,7 @@ ENV: dict[str, tuple[str, Callable[[str], object]]] = {
     "queue_prefix": ("CURVEFM_QUEUE_PREFIX", str),
     "job_retries": ("CURVEFM_JOB_RETRIES", _non_negative(int)),
     "live_sessions": ("CURVEFM_LIVE_SESSIONS", _non_negative(int)),
+    "display_vertices": ("CURVEFM_DISPLAY_VERTICES", _non_negative(int)),
     "session_lock_timeout_s": ("CURVEFM_SESSION_LOCK_TIMEOUT", _non_negative(float)),
     "allowed_hosts": ("CURVEFM_ALLOWED_HOSTS", host_list),
     "quota_bytes": ("CURVEFM_QUOTA_BYTES", _non_negative(int)),

@@ -104,6 +104,7 @@ RULES: dict[tuple[str, str], Rule] = {
     ("post", "/shapes"): Rule(lambda w: Call(files={"file": ("e.off", off_bytes(ellipsoid(6, 12)))})),
     ("get", "/shapes/{shape_id}"): Rule(lambda w: Call({"shape_id": w.lab.shapes[0]})),
     ("get", "/shapes/{shape_id}/mesh"): Rule(lambda w: Call({"shape_id": w.lab.shapes[0]})),
+    ("post", "/shapes/{shape_id}/points"): Rule(lambda w: Call({"shape_id": w.lab.shapes[0]}, json={"vertices": [0]})),
     ("post", "/shapes/{shape_id}/bases"): Rule(lambda w: Call({"shape_id": w.lab.shapes[0]}, json={"k": K})),
     ("delete", "/shapes/{shape_id}"): Rule(lambda w: Call({"shape_id": w.fresh_shape()}), other=403),
     ("delete", "/shapes/{shape_id}/bases"): Rule(lambda w: Call({"shape_id": w.fresh_shape()}), other=403),

@@ -24,6 +24,7 @@ from ui_helpers import (
     next_frames,
     open_session,
     pickable_vertices,
+    refine_in_page,
 )
 
 from curvefm.service.demo import DEMO_SESSION, demo_curves, demo_shapes
@@ -112,11 +113,7 @@ def test_click_curves_delete_refine_and_download(page, demo):
     page.wait_for_selector(f'#curve-list li[data-curve-id="{removed}"]', state="detached")
     wait_until(lambda: removed not in {c["id"] for c in session(demo)["curves"]}, f"{removed} is deleted")
 
-    page.select_option("#converter-select", "nearest-neighbor")
-    page.click("#refine-button")
-    page.wait_for_selector("#refine-progress .progress-row.ok", timeout=60_000)
-    page.wait_for_function('() => document.querySelector(\'input[name="map"][value="pointwise"]\').checked')
-    next_frames(page)
+    refine_in_page(page)
     screenshot(page, "03-refined-pointwise")
 
     with page.expect_download() as download:

@@ -103,6 +103,15 @@ def click_curve(page, points: list[dict], timeout_ms: float = 30_000) -> dict:
     return page.evaluate("window.curvefmStats.last")
 
 
+def refine_in_page(page, converter: str = "nearest-neighbor") -> None:
+    """Refine the open session from the page and wait until the target shows the refinement's pointwise map."""
+    page.select_option("#converter-select", converter)
+    page.click("#refine-button")
+    page.wait_for_selector("#refine-progress .progress-row.ok", timeout=60_000)
+    page.wait_for_function('() => document.querySelector(\'input[name="map"][value="pointwise"]\').checked')
+    next_frames(page)
+
+
 def next_frames(page) -> None:
     """Wait for two animation frames: whatever the page changed before is on screen."""
     page.evaluate("new Promise((done) => requestAnimationFrame(() => requestAnimationFrame(done)))")

@@ -25,8 +25,10 @@ class FunctionTransfer:
         self.coefficients = basis_M.project(values_M).reshape(basis_M.k, -1)
         self.evecs_N = basis_N.evecs.astype(np.float32)
 
-    def apply(self, C_MN: np.ndarray) -> np.ndarray:
+    def apply(self, C_MN: np.ndarray, evecs_N: np.ndarray | None = None) -> np.ndarray:
+        """The function carried through ``C_MN``, at every vertex of N; or, given ``evecs_N`` (float32 rows of
+        N's basis, e.g. at the vertices a display copy draws), at those rows only: the product reads only them."""
         k_N, k_M = C_MN.shape
         carried = (C_MN @ self.coefficients[:k_M]).astype(np.float32)
-        out = self.evecs_N[:, :k_N] @ carried
+        out = (self.evecs_N if evecs_N is None else evecs_N)[:, :k_N] @ carried
         return out.reshape((len(out),) + self.values_shape)

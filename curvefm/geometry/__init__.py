@@ -1,9 +1,10 @@
 """Triangle meshes and what is computed on their surface alone: the :class:`Mesh` type (internal and file
 vertex ids), validation, one reader/writer per file format, Laplace-Beltrami operators, graph paths,
-geodesic distances, farthest-point sampling, decimation and texture coordinates.
+geodesic distances, farthest-point sampling, decimation, display copies of big meshes and texture coordinates.
 """
 
 from curvefm.geometry.decimation import closest_point_weights, decimate
+from curvefm.geometry.display import DisplayMesh, display_mesh
 from curvefm.geometry.geodesics import (
     DEFAULT_CHUNK_BYTES,
     checked_ids,
@@ -29,6 +30,7 @@ from curvefm.geometry.validation import build_mesh, max_vertices, per_vertex_uv
 
 __all__ = [
     "DEFAULT_CHUNK_BYTES",
+    "DisplayMesh",
     "GLTF_FORMATS",
     "Mesh",
     "MeshReport",
@@ -41,6 +43,7 @@ __all__ = [
     "closest_point_weights",
     "cotangent_laplacian",
     "decimate",
+    "display_mesh",
     "cylindrical_uv",
     "edge_keys",
     "edge_weight_graph",

@@ -23,7 +23,7 @@ from pydantic import BaseModel, Field
 from curvefm import registry
 from curvefm.errors import Conflict, NotFound, shown
 from curvefm.fmap import FunctionTransfer
-from curvefm.geometry import Mesh, texture_coordinates
+from curvefm.geometry import DisplayMesh, Mesh, texture_coordinates
 from curvefm.registry import Plugin
 from curvefm.session.curves import CurveSpec, trace_pair
 from curvefm.session.limits import SessionLimits
@@ -63,8 +63,9 @@ class Transferred:
 @dataclass(frozen=True)
 class MapQuality:
     """How far the live maps are from being each other's inverse (:mod:`curvefm.fmap.round_trip`): ``drift`` per
-    target vertex (float32, internal order, units of ``sqrt(area)``), its area-weighted mean ``score``, and the
-    **file** ids of the vertex that drifts furthest on each shape (where a new curve helps most)."""
+    target vertex (float32, internal order or the display vertices', units of ``sqrt(area)``), its area-weighted
+    mean ``score`` over the whole target, and the **file** ids of the vertex that drifts furthest on each shape
+    (where a new curve helps most)."""
 
     drift: np.ndarray
     score: float
@@ -176,28 +177,35 @@ class SessionEditor:
             return live.solver.C_MN, live.solver.C_NM, live.record
 
     def transfer(
-        self, session_id: str, function: TransferFunction, vertices: list[int] | None = None
+        self, session_id: str, function: TransferFunction, vertices: list[int] | None = None, display: bool = False
     ) -> Transferred:
-        """``function`` on the source carried to the target through the live map (see :class:`Transferred`)."""
+        """``function`` on the source carried to the target through the live map (see :class:`Transferred`).
+
+        ``display``: rows at the target's display vertices only (:meth:`LiveSessions.display`; all rows when it
+        is drawn whole), computed from those rows of its basis alone; and an indicator's ``vertices``, picked on
+        the source's display copy, each stand for the part of the source nearest to them."""
         with self.live.using(session_id) as live:
             # pending first: a prior landing between the two reads then costs the client one more read, not the map
             prior_pending, solving = live.solver.prior_pending, "MN" in live.solver.pending
             C_MN, revision = live.solver.C_MN, live.record.revision
             solve_ms = live.solver.last_solve_ms if solving else 0.0
-        key = (function, tuple(vertices or ()))
-        carried = live.transfers.get(key, lambda: _projected(live, function, vertices))
-        values = carried.apply(C_MN)
+        spread = self.live.display(live.record.source, "source") if display and function == "indicator" else None
+        key = (function, tuple(vertices or ()), spread is not None)
+        carried = live.transfers.get(key, lambda: _projected(live, function, vertices, spread))
+        values = carried.apply(C_MN, self._display_rows(live) if display else None)
         rows = np.ascontiguousarray(values.reshape(len(values), -1), dtype=np.float32)
         return Transferred(rows, revision, solve_ms, prior_pending)
 
-    def quality(self, session_id: str) -> MapQuality:
+    def quality(self, session_id: str, display: bool = False) -> MapQuality:
         """The round-trip quality of the live maps. It needs ``C_NM``, which an interactive solver solves now if
-        the last edit deferred it."""
+        the last edit deferred it. ``display``: the drift at the target's display vertices only (the score and
+        the worst vertices are the whole shapes' all the same)."""
         with self.live.using(session_id) as live:
             C_MN, C_NM, revision, measure = live.solver.C_MN, live.solver.C_NM, live.record.revision, live.round_trip
         found = measure.measure(C_MN, C_NM)
+        shown = self.live.display(live.record.target, "target") if display else None
         return MapQuality(
-            drift=found.target,
+            drift=found.target if shown is None else found.target[shown.vertex_ids],
             score=found.score,
             worst_target=int(live.pair.mesh_N.file_ids[found.worst_target]),
             worst_source=int(live.pair.mesh_M.file_ids[found.worst_source]),
@@ -205,6 +213,14 @@ class SessionEditor:
         )
 
     # -- internals ----------------------------------------------------------------------------------------
+    def _display_rows(self, live: LiveSession) -> np.ndarray | None:
+        """The target's basis at its display vertices (float32, made once per session: reading these rows alone
+        is what makes a display transfer cheap), or ``None`` when the target is drawn whole."""
+        shown = self.live.display(live.record.target, "target")
+        if shown is None:
+            return None
+        return live.display_rows.get(shown.key, lambda: live.solver.basis_N.evecs[shown.vertex_ids].astype(np.float32))
+
     def _check_shapes(self, record: SessionRecord) -> None:
         """Both shapes exist, can have ``k`` basis functions, and have them already."""
         needs = basis_needs(record)
@@ -253,9 +269,12 @@ class SessionEditor:
             raise
 
 
-def source_function(mesh: Mesh, function: TransferFunction, vertices: list[int] | None = None) -> np.ndarray:
+def source_function(
+    mesh: Mesh, function: TransferFunction, vertices: list[int] | None = None, spread: DisplayMesh | None = None
+) -> np.ndarray:
     """Per-vertex values on the source: its uv (or generated cylindrical uv), its coordinates scaled to [0, 1]
-    per axis, or the indicator of some vertices (file ids; of none: zero everywhere)."""
+    per axis, or the indicator of some vertices (file ids; of none: zero everywhere), each with the part of the
+    mesh nearest to it on the display copy ``spread`` when given."""
     if function == "uv":
         return texture_coordinates(mesh)
     if function == "xyz":
@@ -263,12 +282,15 @@ def source_function(mesh: Mesh, function: TransferFunction, vertices: list[int] 
         return (mesh.vertices - low) / np.maximum(np.ptp(mesh.vertices, axis=0), 1e-300)
     values = np.zeros(mesh.n_vertices)
     if vertices:
-        values[mesh.internal_ids(vertices, "indicator vertex")] = 1.0
+        ids = mesh.internal_ids(vertices, "indicator vertex")
+        values[ids if spread is None else spread.region_of(ids)] = 1.0
     return values
 
 
-def _projected(live: LiveSession, function: TransferFunction, vertices: list[int] | None) -> FunctionTransfer:
-    values = source_function(live.pair.mesh_M, function, vertices)
+def _projected(
+    live: LiveSession, function: TransferFunction, vertices: list[int] | None, spread: DisplayMesh | None
+) -> FunctionTransfer:
+    values = source_function(live.pair.mesh_M, function, vertices, spread)
     return FunctionTransfer(live.solver.basis_M, live.solver.basis_N, values)
 
 

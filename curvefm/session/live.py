@@ -29,7 +29,7 @@ from functools import cached_property
 from curvefm.cache import LRU
 from curvefm.errors import NotFound, shown
 from curvefm.fmap import CurveMapSolver, FunctionTransfer, RoundTripQuality
-from curvefm.geometry import Mesh
+from curvefm.geometry import DisplayMesh, Mesh, display_mesh
 from curvefm.session.pair import BasisNeed, ShapePair, basis_needs, build_solver, internal_paths, load_basis
 from curvefm.session.record import SessionRecord
 from curvefm.session.record_store import SessionBusy, SessionStore
@@ -52,7 +52,8 @@ class LiveSession:
     record: SessionRecord
     pair: ShapePair
     solver: CurveMapSolver
-    transfers: LRU[FunctionTransfer]  # by (function, vertices): the function on M projected on M's basis
+    transfers: LRU[FunctionTransfer]  # by (function, vertices, spread): the function on M projected on M's basis
+    display_rows: LRU  # by display copy key: float32 rows of N's basis at the target's display vertices
 
     @cached_property
     def round_trip(self) -> RoundTripQuality:
@@ -61,11 +62,15 @@ class LiveSession:
 
 
 class LiveSessions:
-    """Live sessions (at most ``size``), the meshes and bases they use, and the locks that serialise them."""
+    """Live sessions (at most ``size``), the meshes and bases they use, and the locks that serialise them.
+    Meshes with more than ``display_vertices`` vertices are drawn as a display copy of about that many
+    (:mod:`curvefm.geometry.display`; 0: every mesh is drawn whole)."""
 
-    def __init__(self, store: Store, records: SessionStore, size: int = 32):
+    def __init__(self, store: Store, records: SessionStore, size: int = 32, display_vertices: int = 0):
         self.store, self.records = store, records
+        self.display_vertices = display_vertices
         self._meshes: LRU[Mesh] = LRU(16)
+        self._displays: LRU[DisplayMesh] = LRU(16)  # by mesh id: seconds to make at scan size, so kept apart
         self._bases: LRU[Basis] = LRU(8)
         self._sessions: LRU[LiveSession] = LRU(size)
         self._locks = tuple(threading.Lock() for _ in range(LOCK_STRIPES))
@@ -121,6 +126,14 @@ class LiveSessions:
             raise UnknownShape(mesh_id, role)
         return self._meshes.get(mesh_id, lambda: self.store.get_mesh(mesh_id))
 
+    def display(self, mesh_id: str, role: str = "") -> DisplayMesh | None:
+        """The display copy of a stored mesh, made on first use (1-2 s at 110k vertices, 10 s at 440k) and kept
+        while the mesh is in use; ``None`` when it is drawn whole."""
+        mesh = self.mesh(mesh_id, role)
+        if not 0 < self.display_vertices < mesh.n_vertices:
+            return None
+        return self._displays.get(mesh_id, lambda: display_mesh(mesh, self.display_vertices))
+
     def basis(self, need: BasisNeed) -> Basis:
         key = (need.mesh_id, need.plugin, params_key(need.params), need.k)
         return self._bases.get(key, lambda: load_basis(self.store, need))
@@ -152,7 +165,7 @@ class LiveSessions:
         )
         for mesh in pair.meshes:
             mesh.edge_graph  # noqa: B018  (cached property: built here so the first trace answers at once)
-        return LiveSession(record, pair, solver, LRU(8))
+        return LiveSession(record, pair, solver, LRU(8), LRU(2))
 
 
 def _lower_priority() -> None:

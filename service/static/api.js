@@ -1,7 +1,9 @@
 // The curvefm HTTP API: JSON in and out, binary payloads as ArrayBuffer, every failure as an ApiError.
-// Vertex ids in JSON are file ids; binary payloads (mesh, transfer) follow internal vertex order. Whether the
+// Vertex ids in JSON are file ids; binary payloads (mesh, transfer, quality) have a row per drawn vertex (a big
+// shape's display copy: transfer and quality are asked for with resolution=display). Whether the
 // service can be reached goes to the store (state.connected) with every request, and a refused login
 // (401) too (state.loggedOut). Requests carry the login cookie; the browser adds it.
+import { decodeArrays } from "./mesh.js";
 import { loggedOut, setConnected } from "./store.js";
 
 export class ApiError extends Error {
@@ -70,6 +72,12 @@ export const api = {
     form.append("file", file, file.name);
     return request("POST", "/shapes", { body: form });
   },
+  /** Where some vertices are (file ids): { positions: Float32Array n x 3, nearest_row: Uint32Array n }. */
+  async points(id, fileIds) {
+    const path = `/shapes/${enc(id)}/points`;
+    const { buffer } = await request("POST", path, { json: { vertices: fileIds }, as: "binary" });
+    return decodeArrays(buffer).arrays;
+  },
   requestBasis: (id, k) => request("POST", `/shapes/${enc(id)}/bases`, { json: { k } }),
 
   sessions: () => request("GET", "/sessions"),
@@ -91,7 +99,7 @@ export const api = {
    * solveMs, priorPending } (solveMs: the time the service spent solving the map for this read, 0 when already
    * solved; priorPending: the map of this revision will still improve once the landmark prior lands). */
   async transfer(id, fn, vertices = null) {
-    const query = new URLSearchParams({ function: fn });
+    const query = new URLSearchParams({ function: fn, resolution: "display" });
     if (vertices) query.set("vertices", vertices.join(","));
     const { buffer, headers } = await request("GET", `/sessions/${enc(id)}/transfer?${query}`, { as: "binary" });
     const columns = Number(headers.get("X-Shape").split(",")[1]);
@@ -104,10 +112,11 @@ export const api = {
       priorPending: headers.get("X-Prior-Pending") === "true",
     };
   },
-  /** The live maps' round trip per target vertex (see GET /sessions/{id}/quality): { drift: Float32Array,
+  /** The live maps' round trip per drawn target vertex (see GET /sessions/{id}/quality): { drift: Float32Array,
    * score, worstTarget, worstSource (file ids), revision }. */
   async quality(id) {
-    const { buffer, headers } = await request("GET", `/sessions/${enc(id)}/quality`, { as: "binary" });
+    const path = `/sessions/${enc(id)}/quality?resolution=display`;
+    const { buffer, headers } = await request("GET", path, { as: "binary" });
     return {
       drift: new Float32Array(buffer),
       score: Number(headers.get("X-Score")),

@@ -112,7 +112,11 @@ function installTestHooks() {
       const { quality } = state;
       return quality && { score: quality.score, revision: quality.revision };
     },
-    /** The file id of the vertex ringed on one side as the weakest region, or null. */
+    /** How many curve tubes one side draws. */
+    tubeCount(side) {
+      return viewports[side].curveTubes.size;
+    },
+    /** The file id of the (drawn) vertex ringed on one side as the weakest region, or null. */
     highlighted(side) {
       const vertex = viewports[side].highlightedVertex;
       return vertex >= 0 ? state.shapes[side].mesh.fileIds[vertex] : null;

@@ -1,21 +1,31 @@
 // Decodes GET /shapes/{id}/mesh (binary form) into typed arrays, plus the lookups the UI needs.
 
 /**
- * Layout: uint32 header length H (little-endian), H bytes of JSON header, then the arrays back to back; the
- * header gives each array's dtype, shape and byte offset from the end of the header.
- * Returns { name, nVertices, vertices: Float32Array(n*3), faces: Uint32Array(f*3), fileIds: Uint32Array(n),
- * fileToInternal: Int32Array (file id -> internal id, -1 if dropped), winding (see outwardWinding) }.
+ * The service's binary layout (meshes, points): uint32 header length H (little-endian), H bytes of JSON header,
+ * then the arrays back to back; the header gives each array's dtype, shape and byte offset from the end of the
+ * header. Returns { header, arrays: { name: Float32Array | Uint32Array } }.
  */
-export function decodeMesh(buffer) {
+export function decodeArrays(buffer) {
   const headerLength = new DataView(buffer).getUint32(0, true);
   const header = JSON.parse(new TextDecoder().decode(new Uint8Array(buffer, 4, headerLength)));
   const start = 4 + headerLength;
   const arrays = {};
   for (const [name, { dtype, shape, offset }] of Object.entries(header.arrays)) {
     const Type = { float32: Float32Array, uint32: Uint32Array }[dtype];
-    if (!Type) throw new Error(`mesh payload: unexpected dtype ${dtype} of ${name}`);
+    if (!Type) throw new Error(`payload: unexpected dtype ${dtype} of ${name}`);
     arrays[name] = new Type(buffer, start + offset, shape.reduce((a, b) => a * b, 1));
   }
+  return { header, arrays };
+}
+
+/**
+ * A mesh payload: { name, nVertices (drawn), vertices: Float32Array(n*3), faces: Uint32Array(f*3), fileIds:
+ * Uint32Array(n), fileToInternal: Int32Array (file id -> drawn row, -1 if not drawn), texcoords, winding (see
+ * outwardWinding), displayCopy (a big shape's coarser copy, whose rows are some of its vertices), shapeVertices
+ * (the shape's vertex count) }. The UI calls a drawn row a vertex: it speaks file ids to the service.
+ */
+export function decodeMesh(buffer) {
+  const { header, arrays } = decodeArrays(buffer);
   const { vertices, faces, file_ids: fileIds } = arrays;
   let maxFileId = -1;
   for (const id of fileIds) if (id > maxFileId) maxFileId = id;
@@ -32,6 +42,8 @@ export function decodeMesh(buffer) {
     fileToInternal,
     texcoords: arrays.texcoords,
     winding: outwardWinding(vertices, faces, fileIds.length),
+    displayCopy: header.display_copy,
+    shapeVertices: header.shape_vertices,
   };
 }
 
@@ -135,16 +147,17 @@ function partMeasures(vertices, faces, { part, count }) {
 }
 
 /** A map file as written by the service (line j: the source file id for target file vertex j, as
- * ``map_target_to_source.txt``) as internal ids: Int32Array, entry i = source vertex of target vertex i. */
-export function pointwiseMap(text, source, target) {
+ * ``map_target_to_source.txt``) read at the drawn target vertices: Uint32Array, entry i = the source file id of
+ * target vertex i. */
+export function mapImages(text, target) {
   const lines = text.trim().split("\n");
-  const p2p = new Int32Array(target.nVertices);
+  const images = new Uint32Array(target.nVertices);
   for (let i = 0; i < target.nVertices; i++) {
-    const vertex = source.fileToInternal[Number(lines[target.fileIds[i]])];
-    if (vertex === undefined || vertex < 0) {
+    const image = Number(lines[target.fileIds[i]] ?? Number.NaN);
+    if (!Number.isInteger(image) || image < 0) {
       throw new Error(`the map names no source vertex for target vertex ${target.fileIds[i]}`);
     }
-    p2p[i] = vertex;
+    images[i] = image;
   }
-  return p2p;
+  return images;
 }

@@ -11,7 +11,7 @@ import {
   setRevision,
   state,
 } from "../store.js";
-import { showCurves, showPending } from "../views/curves.js";
+import { placeCurves, showCurves, showPending } from "../views/curves.js";
 import { report } from "../views/messages.js";
 import { showMapChoice, showSessionEntry, showStatus } from "../views/page.js";
 import { paint, viewports } from "../views/viewports.js";
@@ -61,7 +61,7 @@ export async function runEdit(clickTime, kind, failure, perform) {
     if (state.map === "pointwise") setMap("functional"); // the refined map belongs to an older revision
     showMapChoice();
     showSessionEntry();
-    const carried = await carriedFunction();
+    const [carried] = await Promise.all([carriedFunction(), placeCurves()]); // the new paths drawn with the texture
     const fetchedAt = performance.now();
     showCurves();
     showPending();

@@ -14,6 +14,8 @@ export async function refreshQuality() {
   if (!session) return;
   try {
     const quality = await api.quality(session.id);
+    const { source, target } = state.shapes; // the weakest vertices are ringed at the drawn vertex nearest to them
+    await Promise.all([source.points.load([quality.worstSource]), target.points.load([quality.worstTarget])]);
     if (state.session !== session || quality.revision < (state.quality?.revision ?? -1)) return;
     setQuality(quality);
     showStatus();

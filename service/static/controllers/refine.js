@@ -1,7 +1,7 @@
 // What the Refine & export panel does: refine the live map into a pointwise one (a job whose files are offered
 // for download and whose map the target can then be shown through), cancel it, download the live map and exports.
 import { api, waitForJob } from "../api.js";
-import { pointwiseMap } from "../mesh.js";
+import { mapImages } from "../mesh.js";
 import { setMap, setPointwise, setRefineJob, state } from "../store.js";
 import { $ } from "../views/dom.js";
 import { listJobFiles, npyBlob, saveBlob, saveUrl } from "../views/downloads.js";
@@ -38,8 +38,10 @@ export async function refine() {
 async function showRefinement(job) {
   listJobFiles($("downloads"), job.links);
   const text = await api.text(job.links["map_target_to_source.txt"]);
-  const p2p = pointwiseMap(text, state.shapes.source.mesh, state.shapes.target.mesh);
-  setPointwise({ p2p, revision: job.result.revision, converter: job.result.converter });
+  const images = mapImages(text, state.shapes.target.mesh);
+  const { points } = state.shapes.source; // a source drawn coarse shows each image at its nearest drawn vertex
+  await points.load(images);
+  setPointwise({ p2p: points.rows(images), revision: job.result.revision, converter: job.result.converter });
   showMapChoice();
 }
 

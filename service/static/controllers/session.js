@@ -3,9 +3,10 @@
 import { api } from "../api.js";
 import { diagonal, xyzValues } from "../functions.js";
 import { decodeMesh } from "../mesh.js";
+import { VertexPoints } from "../points.js";
 import { sessionOpened, sessionShared, setReady, setShapeNames, state } from "../store.js";
 import { showCollection, showMemberChoices } from "../views/collections.js";
-import { showCurves, showPending } from "../views/curves.js";
+import { placeCurves, showCurves, showPending } from "../views/curves.js";
 import { $ } from "../views/dom.js";
 import { listJobFiles } from "../views/downloads.js";
 import { report, toast } from "../views/messages.js";
@@ -44,6 +45,7 @@ export async function openSession(id, { guide = null } = {}) {
     const session = await api.session(id);
     const [source, target] = await Promise.all(SIDES.map((side) => loadShape(session[side], side === "source")));
     sessionOpened(session, { source, target }, guide);
+    await placeCurves();
     listJobFiles($("downloads"), {});
     $("refine-progress").replaceChildren();
     showMapChoice();
@@ -73,7 +75,7 @@ export async function openSession(id, { guide = null } = {}) {
 async function loadShape(id, withFunctions) {
   const [info, payload] = await Promise.all([api.shape(id), api.mesh(id)]);
   const mesh = decodeMesh(payload.buffer);
-  const shape = { info, mesh, diagonal: diagonal(mesh.vertices) };
+  const shape = { info, mesh, points: new VertexPoints(id, mesh), diagonal: diagonal(mesh.vertices) };
   if (withFunctions) Object.assign(shape, { uv: mesh.texcoords, xyz: xyzValues(mesh.vertices) });
   return shape;
 }

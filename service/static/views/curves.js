@@ -3,6 +3,7 @@
 import { answeringTemplate, pendingEmpty, state, templateCurves } from "../store.js";
 import { showGuide, showTemplateButton } from "./collections.js";
 import { $ } from "./dom.js";
+import { report } from "./messages.js";
 import { SIDES, viewports } from "./viewports.js";
 
 const PALETTE = [
@@ -17,26 +18,49 @@ export function curveColor(curveId) {
 
 /** The session's curves: tubes on both shapes (the selected one thicker), the list, and the buttons that need
  * curves or edits. On a guided member the source also shows the template curves not answered yet, and the
- * current template curve is drawn thicker. */
+ * current template curve is drawn thicker. A path through vertices a display copy does not draw is drawn once
+ * the service has placed them (placeCurves). */
 export function showCurves() {
   const { curves } = state.session;
   const current = state.guide?.current;
+  let unplaced = false;
   for (const side of SIDES) {
-    const { mesh } = state.shapes[side];
+    const { points } = state.shapes[side];
     const tubes = curves.map((curve) => ({
       key: `${curve.id}:${curve.tracer}:${curve[`path_${side}`].length}`,
       color: curveColor(colorId(curve)),
-      path: curve[`path_${side}`].map((id) => mesh.fileToInternal[id]),
+      path: curve[`path_${side}`],
       emphasis: curve.id === state.selected || Boolean(current && curve.spec.template_curve === current),
     }));
-    if (side === "source") tubes.push(...unansweredTemplateTubes(mesh, current));
-    viewports[side].setCurves(tubes);
+    if (side === "source") tubes.push(...unansweredTemplateTubes(current));
+    const placed = tubes.filter((tube) => points.has(tube.path));
+    unplaced ||= placed.length < tubes.length;
+    viewports[side].setCurves(placed.map((tube) => ({ ...tube, points: points.path(tube.path) })));
   }
   renderCurveList($("curve-list"), curves, state.selected);
   $("undo-button").disabled = state.history.length === 0;
   $("refine-button").disabled = curves.length === 0;
   showTemplateButton();
   showGuide();
+  if (unplaced) placeCurves().then(showAgain(state.session), (error) => report(error, "The curves could not be drawn"));
+}
+
+/** Ask the service where the vertices of every curve path (and template curve) are that the shapes' display copies
+ * do not draw; resolves at once for shapes drawn whole. */
+export function placeCurves() {
+  const { curves } = state.session;
+  const loads = SIDES.map((side) => state.shapes[side].points.load(curves.flatMap((c) => c[`path_${side}`])));
+  loads.push(state.shapes.source.points.load(templateCurves().flatMap((curve) => curve.path)));
+  return Promise.all(loads);
+}
+
+/** Show the curves and the clicks again (their places are known now), if ``session`` is still the one shown. */
+function showAgain(session) {
+  return () => {
+    if (state.session !== session) return;
+    showCurves();
+    showPending();
+  };
 }
 
 /** A curve answering a template curve takes the template curve's colour, on every member alike. */
@@ -44,13 +68,13 @@ function colorId(curve) {
   return curve.spec.template_curve ?? curve.id;
 }
 
-function unansweredTemplateTubes(mesh, current) {
+function unansweredTemplateTubes(current) {
   return templateCurves()
     .filter((curve) => !curve.answer)
     .map((curve) => ({
       key: `template:${curve.id}`,
       color: curveColor(curve.id),
-      path: curve.path.map((id) => mesh.fileToInternal[id]),
+      path: curve.path,
       emphasis: curve.id === current,
     }));
 }
@@ -98,7 +122,8 @@ export function showPending(sides = SIDES) {
   const color = answeringTemplate() ? curveColor(state.guide.current) : curveColor(`c${state.session?.next_curve ?? 1}`);
   for (const side of sides) {
     const markers = state.pending.points[side].map((vertex) => ({ vertex, color }));
-    if (side === "source" && answeringTemplate()) markers.push(templateStart(state.guide.current));
+    const start = side === "source" && answeringTemplate() ? templateStart(state.guide.current) : { vertex: -1 };
+    if (start.vertex >= 0) markers.push(start);
     viewports[side].setMarkers(markers);
   }
   $("hint").textContent = state.pickingRegion ? "Click the source to choose the region." : pendingHint();
@@ -106,9 +131,10 @@ export function showPending(sides = SIDES) {
   showGuide();
 }
 
+/** The start of a template curve: at the drawn vertex nearest to it (-1 until the service placed it). */
 function templateStart(curveId) {
   const curve = templateCurves().find((c) => c.id === curveId);
-  return { vertex: state.shapes.source.mesh.fileToInternal[curve.path[0]], color: curveColor(curveId) };
+  return { vertex: state.shapes.source.points.rows([curve.path[0]])[0], color: curveColor(curveId) };
 }
 
 /** The hint while a finished curve is being traced (showPending replaces it). */

@@ -10,10 +10,13 @@ export function showLoading(text) {
   element.textContent = text ?? "";
 }
 
-/** The status line: the session's revision and curves, and the timing of the last click. */
+/** The status line: the session's revision and curves, the shapes drawn as display copies, and the timing of the
+ * last click. */
 export function showStatus() {
   const parts = [];
   if (state.session) parts.push(`revision ${state.session.revision}`, `${state.session.curves.length} curves`);
+  const coarse = ["source", "target"].filter((side) => state.shapes[side]?.mesh.displayCopy);
+  if (coarse.length) parts.push(`display copy: ${coarse.map(drawnShare).join(", ")} vertices`);
   if (state.quality) parts.push(`round-trip drift ${(100 * state.quality.score).toFixed(1)}% of √area`);
   const last = state.stats.last;
   if (last) {
@@ -24,6 +27,12 @@ export function showStatus() {
     if (last.solveMs !== undefined) parts.push(`solve ${last.solveMs.toFixed(1)} ms`);
   }
   $("status-line").textContent = parts.join(" · ");
+}
+
+/** "target 49,991 of 110,210": how many of a shape's vertices its display copy draws. */
+function drawnShare(side) {
+  const { nVertices, shapeVertices } = state.shapes[side].mesh;
+  return `${side} ${nVertices.toLocaleString("en")} of ${shapeVertices.toLocaleString("en")}`;
 }
 
 /** The shape and session lists (GET /shapes, GET /sessions), keeping what is chosen. */

@@ -182,7 +182,8 @@ export class Viewport {
   }
 
   // -- curves and clicked points (internal vertex ids) ----------------------------------------------------
-  /** curves: [{ key, color, path: internal ids, emphasis: bool }]. Tubes are rebuilt only when they change. */
+  /** curves: [{ key, color, points: Float32Array n x 3 (the path's vertices), emphasis: bool }]. Tubes are rebuilt
+   * only when they change. */
   setCurves(curves) {
     const wanted = new Map(curves.map((c) => [`${c.key}|${c.color}|${c.emphasis}`, c]));
     for (const [key, tube] of this.curveTubes) {
@@ -195,7 +196,7 @@ export class Viewport {
     }
     for (const [key, curve] of wanted) {
       if (!this.curveTubes.has(key)) {
-        const tube = this.tube(curve.path, curve.color, curve.emphasis ? 1.8 : 1);
+        const tube = this.tube(curve.points, curve.color, curve.emphasis ? 1.8 : 1);
         this.curveTubes.set(key, tube);
         this.curveGroup.add(tube);
       }
@@ -208,15 +209,21 @@ export class Viewport {
     this.frames.request(this);
   }
 
+  /** A tube along a path's vertices (packed xyz): one ring per vertex kept, and a vertex is kept once it is a
+   * tube radius from the last one. A path runs along mesh edges, so finer rings add triangles, not shape: on a
+   * scan of 110k vertices or more, whose edges are shorter than the radius, that halves a tube or better. */
   tube(path, color, widen) {
-    const positions = this.mesh.geometry.attributes.position;
     const points = [];
-    for (const vertex of path) {
-      const point = new THREE.Vector3().fromBufferAttribute(positions, vertex);
-      if (!points.length || !point.equals(points[points.length - 1])) points.push(point);
+    const last = new THREE.Vector3().fromArray(path, path.length - 3);
+    for (let i = 0; i < path.length; i += 3) {
+      const point = new THREE.Vector3().fromArray(path, i);
+      const previous = points[points.length - 1];
+      if (!previous || (point.distanceTo(previous) >= this.tubeRadius && point.distanceTo(last) >= this.tubeRadius)) {
+        points.push(point);
+      }
     }
+    if (!last.equals(points[points.length - 1])) points.push(last);
     if (points.length === 1) points.push(points[0].clone().addScalar(1e-6 * this.tubeRadius));
-    // one ring per path vertex: a path runs along mesh edges, so finer sampling adds triangles, not shape
     const curve = new THREE.CatmullRomCurve3(points, false, "centripetal");
     const geometry = new THREE.TubeGeometry(curve, points.length, widen * this.tubeRadius, 6, false);
     const material = new THREE.MeshLambertMaterial({ color, emissive: color, emissiveIntensity: 0.25 });

@@ -14,12 +14,13 @@ export const viewports = (() => {
   return { source: new Viewport($("source-view"), frames), target: new Viewport($("target-view"), frames) };
 })();
 
-/** The meshes of the open session, with their names in the captions. */
+/** The meshes of the open session, with their names in the captions (and how much of a big shape is drawn). */
 export function showShapes() {
   for (const side of SIDES) {
     const { info, mesh } = state.shapes[side];
     viewports[side].setMesh(mesh);
-    $(`${side}-view`).querySelector(".shape-name").textContent = `${info.name} · ${info.n_vertices} vertices`;
+    const drawn = mesh.displayCopy ? ` (display copy: ${mesh.nVertices})` : "";
+    $(`${side}-view`).querySelector(".shape-name").textContent = `${info.name} · ${info.n_vertices} vertices${drawn}`;
   }
 }
 
@@ -68,8 +69,8 @@ export function showWeakestRegions() {
   const { quality, showQuality } = state;
   for (const side of SIDES) {
     const worst = quality?.[side === "target" ? "worstTarget" : "worstSource"];
-    const vertex = showQuality && worst !== undefined ? state.shapes[side].mesh.fileToInternal[worst] : -1;
-    viewports[side].setHighlight(vertex ?? -1);
+    const vertex = showQuality && worst !== undefined ? state.shapes[side].points.rows([worst])[0] : -1;
+    viewports[side].setHighlight(vertex);
   }
 }
 
@@ -77,15 +78,18 @@ export function showSource() {
   paint("source", state.fn, sourceValues(state.fn));
 }
 
-/** Whether most of the source's curve vertices lie behind the middle along the axis that faces the viewer. */
+/** Whether most of the source's curve vertices (those placed: see placeCurves) lie behind the middle along the axis
+ * that faces the viewer. */
 function curvesBehind(vertices, towards) {
   const axis = ["x", "y", "z"].indexOf(towards);
   const { low, high } = bounds(vertices);
   const middle = (low[axis] + high[axis]) / 2;
-  const { fileToInternal } = state.shapes.source.mesh;
+  const { points } = state.shapes.source;
   let balance = 0;
   for (const curve of state.session?.curves ?? []) {
-    for (const id of curve.path_source) balance += Math.sign(vertices[3 * fileToInternal[id] + axis] - middle);
+    if (!points.has(curve.path_source)) continue;
+    const path = points.path(curve.path_source);
+    for (let i = axis; i < path.length; i += 3) balance += Math.sign(path[i] - middle);
   }
   return balance < 0;
 }
