@@ -5,6 +5,7 @@ Layout under the root (``CURVEFM_DATA``, default ``~/.local/share/curvefm``)::
     meshes/<mesh hash>.npz                         validated mesh arrays
     meshes/<mesh hash>.uploaders                   who uploaded it (user names, one a line, appended)
     bases/<mesh hash>/<plugin>-k<k>-<params>.npz   eigenbases
+    displays/<mesh hash>/v<vertex count>.npz       display copies of big meshes (curvefm.geometry.display)
     sessions/<session id>.json                     session records (curvefm.session.SessionStore)
 
 Every write goes to a temporary file that is fsync'ed and renamed into place, so readers (other processes,
@@ -26,7 +27,7 @@ from pydantic import BaseModel
 
 from curvefm import registry
 from curvefm.errors import NotFound, shown
-from curvefm.geometry import Mesh, MeshReport
+from curvefm.geometry import DisplayMesh, Mesh, MeshReport
 from curvefm.progress import Progress, no_progress
 from curvefm.spectral import Basis
 
@@ -127,15 +128,35 @@ class Store:
         return list(dict.fromkeys(names))
 
     def delete_mesh(self, mesh_hash: str) -> None:
-        """Remove the mesh, its uploaders and its bases."""
+        """Remove the mesh, its uploaders, its bases and its display copies."""
         if not self.has_mesh(mesh_hash):
             raise NotFound(f"no shape with id '{mesh_hash}'")
         self.delete_bases(mesh_hash)
+        if _safe_id(mesh_hash):
+            shutil.rmtree(self.root / "displays" / mesh_hash, ignore_errors=True)
         self.mesh_path(mesh_hash).unlink(missing_ok=True)
         self._uploaders_path(mesh_hash).unlink(missing_ok=True)
 
     def _uploaders_path(self, mesh_hash: str) -> Path:
         return self.root / "meshes" / f"{mesh_hash}.uploaders"
+
+    # -- display copies -----------------------------------------------------------------------------------
+    def display_path(self, mesh_hash: str, vertex_count: int) -> Path:
+        return self.root / "displays" / mesh_hash / f"v{int(vertex_count)}.npz"
+
+    def get_display(self, mesh_hash: str, vertex_count: int) -> DisplayMesh | None:
+        """The stored display copy made for ``vertex_count``, or None (none stored, or not readable: made again)."""
+        try:
+            with np.load(io.BytesIO(self.display_path(mesh_hash, vertex_count).read_bytes())) as arrays:
+                return DisplayMesh(arrays["vertex_ids"], arrays["faces"], arrays["nearest"], int(arrays["n_vertices"]))
+        except (OSError, ValueError, KeyError, EOFError):
+            return None
+
+    def put_display(self, mesh_hash: str, vertex_count: int, display: DisplayMesh) -> None:
+        out = io.BytesIO()
+        np.savez(out, vertex_ids=display.vertex_ids, faces=display.faces, nearest=display.nearest,
+                 n_vertices=display.n_vertices)  # fmt: skip
+        atomic_write(self.display_path(mesh_hash, vertex_count), out.getvalue())
 
     # -- bases --------------------------------------------------------------------------------------------
     def basis_path(self, mesh_hash: str, plugin: str, k: int, params: dict) -> Path:

@@ -89,3 +89,20 @@ def test_live_sessions_make_a_display_copy_once_and_only_for_big_meshes(tmp_path
     assert first is live.display(shape) and len(first.vertex_ids) < faust.n_vertices
     for threshold in (0, faust.n_vertices):  # 0: never; a mesh of the threshold's size is drawn whole
         assert LiveSessions(store, SessionStore(tmp_path), display_vertices=threshold).display(shape) is None
+
+
+def test_display_copies_are_kept_in_the_store_for_other_processes(tmp_path, faust):
+    store = Store(tmp_path)
+    shape = store.put_mesh(faust)
+    made = LiveSessions(store, SessionStore(tmp_path), display_vertices=TARGET).display(shape)
+    path = store.display_path(shape, TARGET)
+    assert path.is_file()
+    read = LiveSessions(store, SessionStore(tmp_path), display_vertices=TARGET).display(shape)  # another process
+    for name in ("vertex_ids", "faces", "nearest"):
+        np.testing.assert_array_equal(getattr(read, name), getattr(made, name))
+    path.write_bytes(b"not an npz")  # a damaged copy is made again, and replaced
+    again = LiveSessions(store, SessionStore(tmp_path), display_vertices=TARGET).display(shape)
+    np.testing.assert_array_equal(again.vertex_ids, made.vertex_ids)
+    assert store.get_display(shape, TARGET) is not None
+    store.delete_mesh(shape)
+    assert not path.exists()

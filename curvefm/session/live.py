@@ -127,12 +127,19 @@ class LiveSessions:
         return self._meshes.get(mesh_id, lambda: self.store.get_mesh(mesh_id))
 
     def display(self, mesh_id: str, role: str = "") -> DisplayMesh | None:
-        """The display copy of a stored mesh, made on first use (1-2 s at 110k vertices, 10 s at 440k) and kept
-        while the mesh is in use; ``None`` when it is drawn whole."""
+        """The display copy of a stored mesh, made on first use (1-2 s at 110k vertices, 10 s at 440k) and kept in
+        the store, so other processes and later starts read it; ``None`` when it is drawn whole."""
         mesh = self.mesh(mesh_id, role)
         if not 0 < self.display_vertices < mesh.n_vertices:
             return None
-        return self._displays.get(mesh_id, lambda: display_mesh(mesh, self.display_vertices))
+        return self._displays.get(mesh_id, lambda: self._stored_display(mesh_id, mesh))
+
+    def _stored_display(self, mesh_id: str, mesh: Mesh) -> DisplayMesh:
+        display = self.store.get_display(mesh_id, self.display_vertices)
+        if display is None or display.n_vertices != mesh.n_vertices:
+            display = display_mesh(mesh, self.display_vertices)
+            self.store.put_display(mesh_id, self.display_vertices, display)
+        return display
 
     def basis(self, need: BasisNeed) -> Basis:
         key = (need.mesh_id, need.plugin, params_key(need.params), need.k)
