@@ -20,7 +20,7 @@ from curvefm import registry
 from curvefm.errors import InvalidInput
 from curvefm.fmap import DEFAULT_K, FunctionalMaps, Hints, transfer
 from curvefm.geometry import Mesh, save_mesh, save_textured_zip, texture_coordinates
-from curvefm.pointwise import PointwiseMaps, compare, initial_maps, measure
+from curvefm.pointwise import PointwiseMaps, compare, measure
 from curvefm.progress import Progress, no_progress, scaled, shared
 from curvefm.registry import ConverterPlugin
 from curvefm.session import CurveSpec, trace_pair
@@ -92,15 +92,16 @@ def convert(
     ``paths`` (refiners keep them). Give ``pair`` bases of ``converter.basis_size(params)`` functions where the
     store has them; else the converter computes them.
 
-    A refining converter's maps are returned only if no intrinsic figure got worse than the nearest-neighbour
-    maps it started from (:func:`curvefm.pointwise.compare`); otherwise those starting maps are, and
-    ``reason`` names the figures that got worse."""
+    A refining converter's maps are returned only if no intrinsic figure got worse than the maps the user gets
+    without refinement, the ``nearest-neighbor`` converter's with its defaults (:func:`curvefm.pointwise.compare`);
+    otherwise those maps are, and ``reason`` names the figures that got worse."""
     paths = tuple(paths)
     maps = converter.convert(pair, fmaps, params, progress, paths)
     quality = measure(pair, maps, paths)
     if not converter.refines:
         return MatchResult(pair, fmaps, maps, method, paths, {"converted": quality.as_dict()})
-    start = initial_maps(pair, fmaps)
+    unrefined, defaults = registry.load("converter", "nearest-neighbor", None)
+    start = unrefined.run(pair, fmaps, defaults)
     start_quality = measure(pair, start, paths)
     worse = compare(quality, start_quality)
     figures = {"initial": start_quality.as_dict(), "refined": quality.as_dict()}
