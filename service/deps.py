@@ -59,7 +59,13 @@ def start_services(settings: Settings) -> Services:
         settings.job_ttl_s,
     )
     records = SessionStore(store.root, lock_timeout_s=settings.session_lock_timeout_s)
-    live = LiveSessions(store, records, size=settings.live_sessions, display_vertices=settings.display_vertices)
+    live = LiveSessions(
+        store,
+        records,
+        size=settings.live_sessions,
+        display_vertices=settings.display_vertices,
+        prior_max_vertices=settings.prior_max_vertices,
+    )
     # require_plugin's errors list the installed plugins
     sessions = SessionEditor(records, live, find_plugin=require_plugin, limits=settings.session_limits)
     quotas = Quotas(settings, Usage(store.root), store, records, queue)

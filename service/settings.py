@@ -50,6 +50,9 @@ class Settings:
     display_vertices: int = 50_000
     """A shape with more vertices is drawn in the UI as a display copy of about this many (its vertices a subset
     of the shape's; ``GET /shapes/{id}/mesh``); 0: every shape is drawn whole."""
+    prior_max_vertices: int = 50_000
+    """Live sessions on bigger shapes solve the combined energy without its landmark prior, which costs seconds
+    of a core per edit there (its descriptors are computed over every vertex)."""
     demo: bool = False
     allowed_hosts: tuple[str, ...] = LOOPBACK_NAMES
     """Host header values answered (lower case, no port); ``*`` answers any."""
@@ -150,6 +153,7 @@ ENV: dict[str, tuple[str, Callable[[str], object]]] = {
     "job_retries": ("CURVEFM_JOB_RETRIES", _non_negative(int)),
     "live_sessions": ("CURVEFM_LIVE_SESSIONS", _non_negative(int)),
     "display_vertices": ("CURVEFM_DISPLAY_VERTICES", _non_negative(int)),
+    "prior_max_vertices": ("CURVEFM_PRIOR_MAX_VERTICES", _non_negative(int)),
     "session_lock_timeout_s": ("CURVEFM_SESSION_LOCK_TIMEOUT", _non_negative(float)),
     "allowed_hosts": ("CURVEFM_ALLOWED_HOSTS", host_list),
     "quota_bytes": ("CURVEFM_QUOTA_BYTES", _non_negative(int)),

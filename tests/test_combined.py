@@ -10,7 +10,7 @@ from shapes import basis_of, ellipsoid
 
 from curvefm import registry
 from curvefm.evaluation import ground_truth_curves, ground_truth_for, score
-from curvefm.fmap import CombinedMapSolver, CurveMapSolver, Hints, landmark_maps, restrict
+from curvefm.fmap import DEFAULT_PRIOR_WEIGHT, CombinedMapSolver, CurveMapSolver, Hints, landmark_maps, restrict
 from curvefm.fmap.combined import kernel_coefficients, kernel_filters, signature_coefficients
 from curvefm.geometry import load_mesh, shortest_path
 from curvefm.matching import match
@@ -227,3 +227,16 @@ def test_a_record_written_before_energies_existed_keeps_the_curve_energy(session
     pair = load_pair(store, records.read("old"))
     with build_solver(records.read("old"), pair) as solver:
         assert type(solver) is CurveMapSolver
+
+
+def test_live_sessions_on_big_shapes_leave_the_prior_out(sessions):
+    store, (source, target) = sessions
+    records = SessionStore(store.root)
+    for limit, weight in ((10, 0.0), (100_000, DEFAULT_PRIOR_WEIGHT)):  # the ellipsoids have 4,098 vertices
+        live = LiveSessions(store, records, prior_max_vertices=limit)
+        editor = SessionEditor(records, live)
+        record = editor.create(SessionCreate(source=source, target=target, k=K))
+        editor.add_curve(record.id, CurveSpec(source=list(ENDPOINTS[0]), target=list(ENDPOINTS[0])))
+        with live.using(record.id) as session:
+            assert session.solver.prior_weight == weight
+        live.close()

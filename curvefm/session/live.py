@@ -64,11 +64,19 @@ class LiveSession:
 class LiveSessions:
     """Live sessions (at most ``size``), the meshes and bases they use, and the locks that serialise them.
     Meshes with more than ``display_vertices`` vertices are drawn as a display copy of about that many
-    (:mod:`curvefm.geometry.display`; 0: every mesh is drawn whole)."""
+    (:mod:`curvefm.geometry.display`; 0: every mesh is drawn whole). Sessions on meshes of more than
+    ``prior_max_vertices`` vertices solve the combined energy without its landmark prior."""
 
-    def __init__(self, store: Store, records: SessionStore, size: int = 32, display_vertices: int = 0):
+    def __init__(
+        self,
+        store: Store,
+        records: SessionStore,
+        size: int = 32,
+        display_vertices: int = 0,
+        prior_max_vertices: int = 50_000,
+    ):
         self.store, self.records = store, records
-        self.display_vertices = display_vertices
+        self.display_vertices, self.prior_max_vertices = display_vertices, prior_max_vertices
         self._meshes: LRU[Mesh] = LRU(16)
         self._displays: LRU[DisplayMesh] = LRU(16)  # by mesh id: seconds to make at scan size, so kept apart
         self._bases: LRU[Basis] = LRU(8)
@@ -167,9 +175,12 @@ class LiveSessions:
         pair = ShapePair(*meshes, self.basis(need_M), self.basis(need_N))
         # an edit solves only the map the texture needs, on one thread: with the cores shared (other sessions,
         # or the browser in bench_ui_latency) that took the solve from 11-13 to 8 ms
+        # the landmark prior costs seconds of a core per edit on big meshes (its descriptors are O(n) each)
+        small = max(mesh.n_vertices for mesh in meshes) <= self.prior_max_vertices
         solver = build_solver(
-            record, pair, interactive=True, executor=self._executor, prior_executor=self._prior_executor
-        )
+            record, pair, interactive=True, executor=self._executor,
+            prior_executor=self._prior_executor if small else None, landmark_prior=small,
+        )  # fmt: skip
         for mesh in pair.meshes:
             mesh.edge_graph  # noqa: B018  (cached property: built here so the first trace answers at once)
         return LiveSession(record, pair, solver, LRU(8), LRU(2))

@@ -77,10 +77,14 @@ def build_solver(
     interactive: bool = False,
     executor: Executor | None = None,
     prior_executor: Executor | None = None,
+    landmark_prior: bool = True,
 ) -> CurveMapSolver:
     """The session's solver (of the record's energy) with all its curves, under the same curve ids as in the record.
-    ``prior_executor``: where the combined energy computes its landmark prior (see :class:`CombinedMapSolver`)."""
-    background = {"prior_executor": prior_executor} if record.energy == "combined" else {}
+    ``prior_executor``: where the combined energy computes its landmark prior (see :class:`CombinedMapSolver`);
+    ``landmark_prior=False``: the combined energy without it."""
+    background = {}
+    if record.energy == "combined":
+        background = {"prior_executor": prior_executor} if landmark_prior else {"prior_weight": 0.0}
     solver = SOLVERS[record.energy](
         pair.mesh_M.vertices,
         pair.basis_M,
