@@ -65,12 +65,12 @@ DEFAULT_PRIOR_WEIGHT = 30.0
 """Weight of the landmark prior, relative to the mean diagonal of the curve systems: chosen by
 benchmarks/bench_combined_prior.py (README, "The landmark prior")."""
 FULL_SIZE_CURVES = 20
+"""Below this many curves the map is handed out at the prior's size (50 x 50): its higher frequencies are not
+determined by so few curves and only blur the pointwise map (README, "The landmark prior")."""
 PRIOR_DELAY_S = 0.5
 """A live session's prior is computed once it has had no new curve for this long: in the browser benchmark, priors
 computed beside back-to-back clicks took click-to-texture p95 at 28k vertices from 79 to 146-164 ms."""
 SUPERSEDED = object()  # what a prior job returns when newer endpoints were asked for while it waited
-"""Below this many curves the map is handed out at the prior's size (50 x 50): its higher frequencies are not
-determined by so few curves and only blur the pointwise map (README, "The landmark prior")."""
 ENERGIES = 20
 SIGMA = 0.06
 
@@ -122,9 +122,9 @@ class CombinedMapSolver(CurveMapSolver):
     The landmark prior: NO17's map from the curves' endpoints (:func:`curvefm.fmap.landmark_maps`), which the
     leading block of C is pulled towards with ``prior_weight``. It costs 0.3-1.5 s at FAUST's size, so an
     ``interactive`` solver given a ``prior_executor`` computes it there (after ``PRIOR_DELAY_S`` without a new
-    curve), one job at a time, when its maps are
-    read; until it lands the maps are solved with the last prior whose landmarks are all still there (or none),
-    and :attr:`prior_pending` says so. Without an executor it is computed in the solve.
+    curve), one job at a time, when its maps are read; until it lands the maps are solved with the last prior
+    whose landmarks are all still there (or none), and :attr:`prior_pending` says so. Without an executor it is
+    computed in the solve.
     """
 
     def __init__(
@@ -191,7 +191,7 @@ class CombinedMapSolver(CurveMapSolver):
         if self._prior_job is not None:
             wait([self._prior_job[1]])
         if not self._prior_matches(landmarks):
-            self._prior = (landmarks, _or_none(lambda: landmark_maps(self.basis_M, self.basis_N, _pairs(landmarks))))
+            self._compute_prior(landmarks)
         self._stale = {"MN", "NM"}
 
     def _landmarks(self) -> frozenset:
@@ -225,25 +225,27 @@ class CombinedMapSolver(CurveMapSolver):
         maps = self._prior[1]
         return Prior(maps.C_MN, weight), Prior(maps.C_NM, weight)
 
+    def _compute_prior(self, landmarks: frozenset) -> None:
+        self._prior = (landmarks, _or_none(lambda: landmark_maps(self.basis_M, self.basis_N, _pairs(landmarks))))
+
     def _start_prior(self, landmarks: frozenset) -> None:
-        pairs = _pairs(landmarks)
         if self._prior_executor is None or not self.interactive:
-            self._prior = (landmarks, _or_none(lambda: landmark_maps(self.basis_M, self.basis_N, pairs)))
+            self._compute_prior(landmarks)
         else:
             if self._prior_job is not None and self._prior_job[1].cancel():  # outdated before it started
                 self._prior_job = None
             self._wanted = landmarks
             if self._prior_job is None:  # else it runs: the next read after it lands asks for the current one
-                job = self._prior_executor.submit(self._quiet_prior, landmarks, pairs)
+                job = self._prior_executor.submit(self._quiet_prior, landmarks)
                 self._prior_job = (landmarks, job)
 
-    def _quiet_prior(self, landmarks: frozenset, pairs: np.ndarray) -> FunctionalMaps | object:
+    def _quiet_prior(self, landmarks: frozenset) -> FunctionalMaps | object:
         """The prior, once the session has been left alone for ``PRIOR_DELAY_S``: while a person clicks on, each
         job finds newer endpoints wanted and returns :data:`SUPERSEDED` at once, so the clicks keep the cores."""
         time.sleep(PRIOR_DELAY_S)
         if self._wanted != landmarks:
             return SUPERSEDED
-        return landmark_maps(self.basis_M, self.basis_N, pairs)
+        return landmark_maps(self.basis_M, self.basis_N, _pairs(landmarks))
 
     def _sized(self, C: np.ndarray) -> np.ndarray:
         if self.prior_weight <= 0 or len(self.curves) >= self.full_size_curves:
