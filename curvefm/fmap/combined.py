@@ -67,9 +67,10 @@ benchmarks/bench_combined_prior.py (README, "The landmark prior")."""
 FULL_SIZE_CURVES = 20
 """Below this many curves the map is handed out at the prior's size (50 x 50): its higher frequencies are not
 determined by so few curves and only blur the pointwise map (README, "The landmark prior")."""
-PRIOR_DELAY_S = 0.5
+PRIOR_DELAY_S = 1.0
 """A live session's prior is computed once it has had no new curve for this long: in the browser benchmark, priors
-computed beside back-to-back clicks took click-to-texture p95 at 28k vertices from 79 to 146-164 ms."""
+computed beside back-to-back clicks took click-to-texture p95 at 28k vertices from 79 to 146-164 ms (computed after
+every click) and from 89 to 130 ms (after 0.5 s without a new curve)."""
 SUPERSEDED = object()  # what a prior job returns when newer endpoints were asked for while it waited
 ENERGIES = 20
 SIGMA = 0.06
