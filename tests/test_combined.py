@@ -12,6 +12,7 @@ from curvefm import registry
 from curvefm.evaluation import ground_truth_curves, ground_truth_for, score
 from curvefm.fmap import DEFAULT_PRIOR_WEIGHT, CombinedMapSolver, CurveMapSolver, Hints, landmark_maps, restrict
 from curvefm.fmap.combined import kernel_coefficients, kernel_filters, signature_coefficients
+from curvefm.fmap.landmark_prior import NoLongerWanted
 from curvefm.geometry import load_mesh, shortest_path
 from curvefm.matching import match
 from curvefm.session import (
@@ -119,6 +120,26 @@ def test_an_interactive_solver_computes_the_prior_in_the_background(shapes, path
             live.remove_curve(gone)
             assert not live.prior_pending  # back to the endpoints the prior was computed for
             assert np.allclose(live.C_MN, at_once.C_MN, rtol=0, atol=1e-12)
+
+
+def test_a_prior_no_longer_wanted_stops_at_its_next_step(shapes, paths):
+    """The background prior gives up when newer endpoints are wanted: each descriptor part and each direction
+    asks first, so a job stops after the step it was in, and its finished parts serve the next job."""
+    _, bM, _, bN = shapes
+    landmarks = Hints.from_curves(paths[:2]).landmarks
+    asked = []
+
+    def wanted_for(steps):
+        return lambda: asked.append(1) or len(asked) <= steps
+
+    with pytest.raises(NoLongerWanted):
+        landmark_maps(bM, bN, landmarks, wanted=wanted_for(3))
+    assert len(asked) == 4  # three steps, then the fourth asked and stopped
+    asked.clear()
+    maps = landmark_maps(bM, bN, landmarks, wanted=lambda: asked.append(1) or True)
+    assert len(asked) == 2 * (1 + len(landmarks)) + 2  # a part per side for signatures and each landmark, 2 solves
+    expected = landmark_maps(bM, bN, landmarks)
+    assert np.array_equal(maps.C_MN, expected.C_MN) and np.array_equal(maps.C_NM, expected.C_NM)
 
 
 def test_incremental_edits_equal_a_fresh_solve(shapes, paths):

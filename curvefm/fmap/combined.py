@@ -49,7 +49,7 @@ import numpy as np
 from curvefm.cache import LRU
 from curvefm.errors import CurvefmError
 from curvefm.fmap.column_solve import Prior
-from curvefm.fmap.landmark_prior import NO17Settings, landmark_maps
+from curvefm.fmap.landmark_prior import NO17Settings, NoLongerWanted, landmark_maps
 from curvefm.fmap.maps import FunctionalMaps, curve_endpoints
 from curvefm.fmap.solver import CurveMapSolver, basis_digest
 from curvefm.spectral import Basis, energy_filters, normalised, wave_kernel_signature
@@ -242,11 +242,14 @@ class CombinedMapSolver(CurveMapSolver):
 
     def _quiet_prior(self, landmarks: frozenset) -> FunctionalMaps | object:
         """The prior, once the session has been left alone for ``PRIOR_DELAY_S``: while a person clicks on, each
-        job finds newer endpoints wanted and returns :data:`SUPERSEDED` at once, so the clicks keep the cores."""
+        job finds newer endpoints wanted and returns :data:`SUPERSEDED`, at once or, if the click came while it
+        ran, at its next step (a few tenths of a second), so the clicks keep the cores."""
         time.sleep(PRIOR_DELAY_S)
-        if self._wanted != landmarks:
+        try:
+            pairs = _pairs(landmarks)
+            return landmark_maps(self.basis_M, self.basis_N, pairs, wanted=lambda: self._wanted == landmarks)
+        except NoLongerWanted:
             return SUPERSEDED
-        return landmark_maps(self.basis_M, self.basis_N, _pairs(landmarks))
 
     def _sized(self, C: np.ndarray) -> np.ndarray:
         if self.prior_weight <= 0 or len(self.curves) >= self.full_size_curves:

@@ -10,10 +10,15 @@ with each term divided by its typical size (:func:`curvefm.fmap.balanced_weights
 The descriptors split into parts that do not change while a person edits: the signatures of a shape, and the
 kernels at one landmark. Each part's coefficients and multiplication operators are computed once and cached
 by the basis's content, so adding a curve costs only its two new landmarks' parts and the solve.
+
+The combined energy computes these maps in the background while a person clicks on (its landmark prior): a
+``wanted`` callback, asked before each descriptor part and each direction's solve (a few tenths of a second each at
+28k vertices), lets it give up as soon as newer landmarks are wanted, so the cores go back to the clicks.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -58,6 +63,10 @@ class DescriptorPart:
     operators: np.ndarray
 
 
+class NoLongerWanted(Exception):
+    """Raised by :func:`landmark_maps` when its ``wanted`` callback says the maps are no longer needed."""
+
+
 _PARTS: LRU[DescriptorPart] = LRU(256)  # at k = 50 a landmark's part is 0.4 MB: at most about 100 MB
 
 
@@ -75,33 +84,45 @@ def descriptor_part(basis: Basis, functions: np.ndarray, k: int) -> DescriptorPa
 
 
 def no17_maps(part_M: DescriptorPart, part_N: DescriptorPart, basis_M: Basis, basis_N: Basis,
-              settings: NO17Settings) -> FunctionalMaps:  # fmt: skip
+              settings: NO17Settings, wanted: Callable[[], bool] = lambda: True) -> FunctionalMaps:  # fmt: skip
     """Both directions of NO17's map between corresponding descriptors."""
     k = settings.k
     lam_M, lam_N = normalised_eigenvalues(basis_M, basis_N, k)
     A, B, X, Y = part_M.coefficients, part_N.coefficients, part_M.operators, part_N.operators
     maps = []
     for F_from, F_to, l_from, l_to, X_from, X_to in ((A, B, lam_M, lam_N, X, Y), (B, A, lam_N, lam_M, Y, X)):
+        _check(wanted)
         w_descr, mu, w_comm = balanced_weights(F_from, F_to, l_from, l_to, X_from, X_to, settings.mu, settings.w_comm)
         energy = DescriptorEnergy(F_from, F_to, l_from, l_to, X_from, X_to, mu, w_descr, w_comm)
         maps.append(energy.minimiser() if k <= EXACT_MAX_K else _quasi_newton(energy, settings.max_iter))
     return FunctionalMaps(maps[0], maps[1])
 
 
-def landmark_maps(basis_M: Basis, basis_N: Basis, landmarks: np.ndarray,
-                  settings: NO17Settings = NO17Settings()) -> FunctionalMaps:  # fmt: skip
-    """NO17's maps from corresponding ``landmarks`` (m x 2 internal vertex ids), with cached descriptor parts."""
+def landmark_maps(basis_M: Basis, basis_N: Basis, landmarks: np.ndarray, settings: NO17Settings = NO17Settings(),
+                  wanted: Callable[[], bool] = lambda: True) -> FunctionalMaps:  # fmt: skip
+    """NO17's maps from corresponding ``landmarks`` (m x 2 internal vertex ids), with cached descriptor parts.
+
+    Raises :class:`NoLongerWanted` as soon as ``wanted()`` turns false (parts computed until then stay cached).
+    """
     k = min(settings.k, basis_M.k, basis_N.k)
     settings = replace(settings, k=k)
-    sides = [_descriptors(basis, landmarks[:, column], settings) for basis, column in ((basis_M, 0), (basis_N, 1))]
-    return no17_maps(sides[0], sides[1], basis_M, basis_N, settings)
+    sides = [_descriptors(basis, landmarks[:, side], settings, wanted) for side, basis in enumerate((basis_M, basis_N))]
+    return no17_maps(sides[0], sides[1], basis_M, basis_N, settings, wanted)
 
 
-def _descriptors(basis: Basis, landmarks: np.ndarray, settings: NO17Settings) -> DescriptorPart:
+def _check(wanted: Callable[[], bool]) -> None:
+    if not wanted():
+        raise NoLongerWanted
+
+
+def _descriptors(basis: Basis, landmarks: np.ndarray, settings: NO17Settings,
+                 wanted: Callable[[], bool]) -> DescriptorPart:  # fmt: skip
     """The signatures' part and each landmark's, from the cache where there."""
     digest = basis_digest(basis)
-    keys = [None] + [int(vertex) for vertex in landmarks]
-    parts = [_PARTS.get((digest, key, settings), lambda key=key: _part(basis, key, settings)) for key in keys]
+    parts = []
+    for key in [None] + [int(vertex) for vertex in landmarks]:
+        _check(wanted)
+        parts.append(_PARTS.get((digest, key, settings), lambda key=key: _part(basis, key, settings)))
     return DescriptorPart(np.hstack([p.coefficients for p in parts]), np.concatenate([p.operators for p in parts]))
 
 
