@@ -69,7 +69,8 @@ class CombinedParams(CurvesParams):
     )
     prior_weight: float = Field(
         DEFAULT_PRIOR_WEIGHT, ge=0, description="weight of the landmark prior (NO17's map from the curves' endpoints) "
-        "relative to the curve systems' mean diagonal; 0: no prior, and the map always has the basis's size",
+        "relative to the curve systems' mean diagonal, doubled with a single curve; 0: no prior, and the map always "
+        "has the basis's size",
     )
     full_size_curves: int = Field(
         FULL_SIZE_CURVES, ge=1, le=100_000, description="with fewer curves than this (and a prior) the map has the "

@@ -64,6 +64,10 @@ KERNEL_POINTS = 2
 DEFAULT_PRIOR_WEIGHT = 30.0
 """Weight of the landmark prior, relative to the mean diagonal of the curve systems: chosen by
 benchmarks/bench_combined_prior.py (README, "The landmark prior")."""
+ONE_CURVE_PRIOR_FACTOR = 2.0
+"""With a single curve the prior's weight is multiplied by this: one curve's interior misleads most. On `curvefm
+reproduce`'s suite it took FAUST-5k with one curve from 0.0463 to 0.0458 and TOSCA across classes from 0.129 to
+0.125 (NO17: 0.0459, 0.1252); from 2 curves on the doubled weight was no better (README, "The landmark prior")."""
 FULL_SIZE_CURVES = 20
 """Below this many curves the map is handed out at the prior's size (50 x 50): its higher frequencies are not
 determined by so few curves and only blur the pointwise map (README, "The landmark prior")."""
@@ -222,7 +226,8 @@ class CombinedMapSolver(CurveMapSolver):
         if self._prior is None or self._prior[1] is None or not self._prior[0] <= landmarks:
             return None, None
         G_M, G_N, _ = self.normal_equations()
-        weight = self.prior_weight * float(np.trace(G_M) + np.trace(G_N)) / (2 * self.k)  # the mean diagonal
+        weight = self.prior_weight * (ONE_CURVE_PRIOR_FACTOR if len(self.curves) == 1 else 1.0)
+        weight *= float(np.trace(G_M) + np.trace(G_N)) / (2 * self.k)  # relative to the mean diagonal
         maps = self._prior[1]
         return Prior(maps.C_MN, weight), Prior(maps.C_NM, weight)
 
