@@ -21,6 +21,18 @@ changes by less than ``tol`` (relative) over five iterations.
 The user's curves stay pinned (:class:`~curvefm.pointwise.CurvePins`): after every projection the vertices
 of each curve map onto its partner curve (the exact vertex, also with triangle projection).
 
+Anchor (not in the paper): after every vertex projection, a vertex whose image lies farther than
+``anchor_radius`` (0.15, in the image's geodesic embedding at unit area) from its image under the anchor maps goes
+to that image instead, a pinned curve vertex included. The anchor maps are those the guard of
+:func:`curvefm.matching.convert` would accept: ZoomOut's start where it makes no intrinsic figure worse than the
+``nearest-neighbor`` converter's maps, else those. So RHM refines a map the guard trusts, but does not carry a
+vertex across the shape. The pins place a curve's inner vertices by normalised arc length, which is wrong where
+the two curves' proportions differ, and the anchor releases those (on cat -> lion with 10 curves at radius 0.1,
+34 of the 272 pinned source vertices). Anchored to the nearest-neighbour maps on every pair, RHM lost much of its
+gain where ZoomOut's start was good and the nearest-neighbour one poor (cat0 -> cat2 with 2 curves: 0.0478
+against 0.0259). Without the anchor RHM ended worse than its start on two rows of the reproduce suite (cat -> lion
+with 10 curves, wolf -> dog with 2); see benchmarks/bench_refinement_guard.py and the README for the rows with it.
+
 Big meshes: every iteration factorises a sparse system of the mesh's size, so above ``dense_up_to`` vertices
 RHM runs on decimated copies of both shapes (``coarse_vertices``, quadric decimation); the copies' embeddings
 and continuous images, interpolated to every vertex, then give one projection step at full resolution
@@ -54,13 +66,16 @@ from scipy.spatial import cKDTree
 
 from curvefm.fmap import FunctionalMaps
 from curvefm.geometry import Mesh, build_mesh, closest_point_weights, cotangent_laplacian, decimate
+from curvefm.plugins.converters import NearestNeighborParams, convert_nearest_neighbor
 from curvefm.plugins.zoomout import ZoomOutParams, convert_zoomout, zoomout_basis_size
 from curvefm.pointwise import (
     CurvePins,
     PointwiseMaps,
     closest_points,
+    compare,
     geodesic_embedding,
     initial_maps,
+    measure,
     no_pins,
     unit_area,
 )
@@ -73,6 +88,10 @@ COARSE_VERTICES = 5_000  # vertices of the decimated copies RHM iterates on abov
 #: RHM on 5,000-vertex copies was as good as on every vertex on FAUST (0.0094 against 0.0092) and takes 19 s at
 #: 27.5k vertices, where every vertex would take minutes: a lower threshold than ZoomOut's and ICP's
 RHM_DENSE_UP_TO = 20_000
+#: how far (units of sqrt(area), in the geodesic embedding) RHM may carry a vertex's image from the anchor maps; on
+#: cat -> lion (10 curves, nearest-neighbour anchor) 0.1 / 0.15 / 0.2 gave 0.0215 / 0.0235 / 0.0266 against a start of
+#: 0.0263, and with 2 curves 0.0301 / 0.0238 / 0.0234 against 0.0382 (README)
+ANCHOR_RADIUS = 0.15
 
 
 class RhmParams(BaseModel):
@@ -106,6 +125,13 @@ class RhmParams(BaseModel):
     coarse_vertices: int = Field(
         COARSE_VERTICES, ge=200, le=10**6, description="vertices of the decimated copies (above dense_up_to)"
     )
+    anchor_radius: float = Field(
+        ANCHOR_RADIUS,
+        ge=0,
+        description="after every projection, a vertex whose image lies farther than this (units of sqrt(area), "
+        "geodesic embedding) from its image under the anchor maps (ZoomOut's start where the guard accepts it, "
+        "else the nearest-neighbour maps) goes to that image (0: off)",
+    )
 
     @model_validator(mode="after")
     def _consistent(self):
@@ -137,6 +163,7 @@ class _Map:
     p2p: np.ndarray
     X: np.ndarray
     pinned: np.ndarray  # (n_domain,) the image vertex each domain vertex must map to, FREE (-1) if none
+    anchor: np.ndarray | None = None  # (n_domain,) each domain vertex's image vertex under the anchor maps
 
 
 def prepare_shape(mesh: Mesh, params: RhmParams) -> _Shape:
@@ -161,15 +188,27 @@ def projection_embeddings(
     return data, queries
 
 
-def project(fwd: _Map, back: _Map, alpha: float, beta: float, projection: str) -> None:
+def near_anchor(p2p: np.ndarray, anchor: np.ndarray | None, image_X: np.ndarray, radius: float) -> np.ndarray:
+    """``p2p`` with each entry that lands farther than ``radius`` from ``anchor``'s (both: an image vertex per
+    domain vertex; distances in the image embedding ``image_X``) replaced by the anchor's: RHM refines the
+    start's correspondence locally but does not carry a vertex across the shape."""
+    if anchor is None or radius <= 0:
+        return p2p
+    return np.where(np.linalg.norm(image_X[p2p] - image_X[anchor], axis=1) > radius, anchor, p2p)
+
+
+def project(fwd: _Map, back: _Map, alpha: float, beta: float, projection: str, radius: float = 0.0) -> None:
     """Update ``fwd.P`` and ``fwd.p2p``: each domain vertex y goes to the point x of the image minimising
-    ``(1 - alpha) |back.X(x) - X_domain(y)|^2 + beta |X_image(x) - fwd.X(y)|^2`` (reversibility, coupling)."""
+    ``(1 - alpha) |back.X(x) - X_domain(y)|^2 + beta |X_image(x) - fwd.X(y)|^2`` (reversibility, coupling);
+    pinned vertices go to their pin, and then (vertex projection) any vertex whose image lies farther than
+    ``radius`` from its image under ``fwd.anchor`` goes to that image instead, even a pinned one."""
     data, queries = projection_embeddings(back.X, fwd.image.X, fwd.domain.X, fwd.X, alpha, beta)
-    fixed = fwd.pinned >= 0
     if projection == "vertex":
-        fwd.p2p = np.where(fixed, fwd.pinned, cKDTree(data).query(queries, workers=-1)[1])
+        p2p = np.where(fwd.pinned >= 0, fwd.pinned, cKDTree(data).query(queries, workers=-1)[1])
+        fwd.p2p = near_anchor(p2p, fwd.anchor, fwd.image.X, radius)
         fwd.P = vertex_rows(fwd.p2p, len(data))
         return
+    fixed = fwd.pinned >= 0
     corners, weights = closest_points(data, fwd.image.faces, queries)
     corners[fixed] = fwd.pinned[fixed, None]
     weights[fixed] = (1.0, 0.0, 0.0)
@@ -209,20 +248,22 @@ def reversible_harmonic_maps(
     params: RhmParams,
     progress: Progress = no_progress,
     pins: CurvePins | None = None,
+    anchor: PointwiseMaps | None = None,
 ) -> tuple[_Map, _Map, float]:
-    """Alternating minimisation from the pointwise maps ``maps``, keeping ``pins`` fixed: both maps as they end
+    """Alternating minimisation from the pointwise maps ``maps``, keeping ``pins`` fixed and every image within
+    ``params.anchor_radius`` of its image under ``anchor`` (vertex projection): both maps as they end
     (``MN.p2p`` is ``p2p_MN``), and the last coupling weight."""
     pins = pins or no_pins(len(shape_M.X), len(shape_N.X))
     p2p_MN, p2p_NM = pins.pin_MN(maps.p2p_MN), pins.pin_NM(maps.p2p_NM)
     P_MN, P_NM = vertex_rows(p2p_MN, len(shape_N.X)), vertex_rows(p2p_NM, len(shape_M.X))
-    MN = _Map(shape_M, shape_N, P_MN, p2p_MN, P_MN @ shape_N.X, pins.M_to_N)
-    NM = _Map(shape_N, shape_M, P_NM, p2p_NM, P_NM @ shape_M.X, pins.N_to_M)
+    MN = _Map(shape_M, shape_N, P_MN, p2p_MN, P_MN @ shape_N.X, pins.M_to_N, None if anchor is None else anchor.p2p_MN)
+    NM = _Map(shape_N, shape_M, P_NM, p2p_NM, P_NM @ shape_M.X, pins.N_to_M, None if anchor is None else anchor.p2p_NM)
     energies = []
     for t in range(1, params.max_iterations + 1):
         progress((t - 1) / params.max_iterations, f"RHM iteration {t} of at most {params.max_iterations}")
         beta = min(t * params.beta, params.beta_max)
         for fwd, back in ((NM, MN), (MN, NM)):
-            project(fwd, back, params.alpha, beta, params.projection)
+            project(fwd, back, params.alpha, beta, params.projection, params.anchor_radius)
             solve_image(fwd, back, params.alpha, beta)
         energies.append(energy(MN, NM, params.alpha, beta) + energy(NM, MN, params.alpha, beta))
         if t >= params.min_iterations and settled(energies, params.tol):
@@ -234,19 +275,22 @@ def reversible_harmonic_maps(
 def convert_rhm(
     pair: ShapePair, fmaps: FunctionalMaps, params: RhmParams, progress: Progress = no_progress, curves=()
 ) -> PointwiseMaps:
+    progress(0.0, "initial maps (nearest neighbours)")
+    anchor = convert_nearest_neighbor(pair, fmaps, NearestNeighborParams()) if params.anchor_radius > 0 else None
     if params.init == "zoomout":
         maps = convert_zoomout(pair, fmaps, params.init_zoomout, scaled(progress, 0.0, 0.3), curves)
+        if anchor is not None and not compare(measure(pair, maps, curves), measure(pair, anchor, curves)):
+            anchor = maps  # the guard (curvefm.matching.convert) would return ZoomOut's maps: anchor to those
     else:
-        progress(0.0, "initial maps (nearest neighbours)")
         maps = initial_maps(pair, fmaps)
     if max(pair.mesh_M.n_vertices, pair.mesh_N.n_vertices) > params.dense_up_to:
-        return coarse_reversible_harmonic_maps(pair, maps, params, scaled(progress, 0.3, 1.0), curves)
+        return coarse_reversible_harmonic_maps(pair, maps, params, scaled(progress, 0.3, 1.0), curves, anchor)
     progress(0.3, "geodesic embedding of the source")
     shape_M = prepare_shape(pair.mesh_M, params)
     progress(0.35, "geodesic embedding of the target")
     shape_N = prepare_shape(pair.mesh_N, params)
     pins = CurvePins.from_curves(pair.mesh_M, pair.mesh_N, curves)
-    MN, NM, _ = reversible_harmonic_maps(maps, shape_M, shape_N, params, scaled(progress, 0.4, 1.0), pins)
+    MN, NM, _ = reversible_harmonic_maps(maps, shape_M, shape_N, params, scaled(progress, 0.4, 1.0), pins, anchor)
     return PointwiseMaps(p2p_NM=NM.p2p, p2p_MN=MN.p2p)
 
 
@@ -275,24 +319,40 @@ class _Coarse:
 
 
 def coarse_reversible_harmonic_maps(
-    pair: ShapePair, maps: PointwiseMaps, params: RhmParams, progress: Progress = no_progress, curves=()
+    pair: ShapePair,
+    maps: PointwiseMaps,
+    params: RhmParams,
+    progress: Progress = no_progress,
+    curves=(),
+    anchor: PointwiseMaps | None = None,
 ) -> PointwiseMaps:
-    """RHM on decimated copies of both shapes, from ``maps`` carried to them, then one projection of every
-    vertex: the embeddings and continuous images of the copies, interpolated to every vertex, give the
-    projection step of the last iteration at full resolution (curves pinned)."""
+    """RHM on decimated copies of both shapes, from ``maps`` (and ``anchor``) carried to them, then one
+    projection of every vertex: the embeddings and continuous images of the copies, interpolated to every
+    vertex, give the projection step of the last iteration at full resolution (curves pinned, anchored)."""
     progress(0.0, f"decimating both shapes to about {params.coarse_vertices} vertices")
     M, N = _Coarse.of(pair.mesh_M, params.coarse_vertices), _Coarse.of(pair.mesh_N, params.coarse_vertices)
-    start = PointwiseMaps(p2p_NM=M.coarse_ids[maps.p2p_NM[N.fine_ids]], p2p_MN=N.coarse_ids[maps.p2p_MN[M.fine_ids]])
+    start, coarse_anchor = (
+        None
+        if m is None
+        else PointwiseMaps(p2p_NM=M.coarse_ids[m.p2p_NM[N.fine_ids]], p2p_MN=N.coarse_ids[m.p2p_MN[M.fine_ids]])
+        for m in (maps, anchor)
+    )
     pins = CurvePins.from_curves(M.mesh, N.mesh, [(M.path(path_M), N.path(path_N)) for path_M, path_N in curves])
     progress(0.05, "geodesic embeddings of the decimated shapes")
     shape_M, shape_N = prepare_shape(M.mesh, params), prepare_shape(N.mesh, params)
-    MN, NM, beta = reversible_harmonic_maps(start, shape_M, shape_N, params, scaled(progress, 0.1, 0.95), pins)
+    MN, NM, beta = reversible_harmonic_maps(
+        start, shape_M, shape_N, params, scaled(progress, 0.1, 0.95), pins, coarse_anchor
+    )
     progress(0.95, "projecting every vertex")
     X_M, X_N, X_MN, X_NM = M.prolong @ shape_M.X, N.prolong @ shape_N.X, M.prolong @ MN.X, N.prolong @ NM.X
     fine_pins = CurvePins.from_curves(pair.mesh_M, pair.mesh_N, curves)
+    p2p_NM = fine_pins.pin_NM(nearest_vertices(X_MN, X_M, X_N, X_NM, params.alpha, beta))
+    p2p_MN = fine_pins.pin_MN(nearest_vertices(X_NM, X_N, X_M, X_MN, params.alpha, beta))
+    if anchor is None:
+        return PointwiseMaps(p2p_NM=p2p_NM, p2p_MN=p2p_MN)
     return PointwiseMaps(
-        p2p_NM=fine_pins.pin_NM(nearest_vertices(X_MN, X_M, X_N, X_NM, params.alpha, beta)),
-        p2p_MN=fine_pins.pin_MN(nearest_vertices(X_NM, X_N, X_M, X_MN, params.alpha, beta)),
+        p2p_NM=near_anchor(p2p_NM, anchor.p2p_NM, X_M, params.anchor_radius),
+        p2p_MN=near_anchor(p2p_MN, anchor.p2p_MN, X_N, params.anchor_radius),
     )
 
 

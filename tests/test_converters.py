@@ -20,7 +20,8 @@ from curvefm.evaluation import evaluate_map, ground_truth_curves, ground_truth_f
 from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K, DEFAULT_SAMPLES, FunctionalMaps
 from curvefm.geometry import load_mesh
 from curvefm.matching import MatchResult, match
-from curvefm.pointwise import AUTO_SAMPLES, closest_points, edge_stretch, refinement_samples
+from curvefm.plugins.rhm import ANCHOR_RADIUS, RhmParams, prepare_shape, reversible_harmonic_maps
+from curvefm.pointwise import AUTO_SAMPLES, CurvePins, closest_points, edge_stretch, refinement_samples
 from curvefm.progress import Cancelled, no_progress
 from curvefm.session import CurveRecord, CurveSpec, SessionRecord
 from curvefm.store import Store
@@ -137,6 +138,25 @@ def test_rhm_on_decimated_copies_beats_nearest_neighbor(faust):
 def test_cat_to_lion_rhm_beats_nearest_neighbor(cat_lion):
     error = refined_error(cat_lion, "rhm", SHORT_RHM)
     assert error < cat_lion.baseline, (error, cat_lion.baseline)
+
+
+def test_rhm_keeps_every_image_within_the_anchor_radius_of_the_nearest_neighbour_start(faust):
+    """RHM may refine the start locally but not carry a vertex across the shape: after every projection an image
+    farther than ``anchor_radius`` (geodesic embedding, unit area) from the nearest-neighbour image goes back there,
+    pinned curve vertices included. Without the anchor the same iterations move some images farther."""
+    pair, start = faust.result.pair, faust.result.maps  # match's default converter: the nearest-neighbour maps
+    params = RhmParams(**SHORT_RHM)
+    shapes = prepare_shape(pair.mesh_M, params), prepare_shape(pair.mesh_N, params)
+    pins = CurvePins.from_curves(pair.mesh_M, pair.mesh_N, faust.result.paths)
+    farthest = {}
+    for radius in (0.0, ANCHOR_RADIUS):
+        anchored = params.model_copy(update={"anchor_radius": radius})
+        MN, NM, _ = reversible_harmonic_maps(start, *shapes, anchored, pins=pins, anchor=start)
+        farthest[radius] = max(
+            np.linalg.norm(shapes[1].X[MN.p2p] - shapes[1].X[start.p2p_MN], axis=1).max(),
+            np.linalg.norm(shapes[0].X[NM.p2p] - shapes[0].X[start.p2p_NM], axis=1).max(),
+        )
+    assert farthest[ANCHOR_RADIUS] <= ANCHOR_RADIUS < farthest[0.0], farthest
 
 
 def test_rhm_reports_progress_and_stops_when_cancelled(faust):

@@ -16,9 +16,9 @@ lands flipped or elsewhere stretch edges across the target and raise it).
 Distances are measured on the shapes scaled to unit area, so the figures do not depend on units.
 :func:`compare` decides whether a refined map is worse than its start, figure by figure. What this cannot see
 (benchmarks/bench_refinement_guard.py, README): RHM minimises reversibility and pins the curves, so curve residual,
-coverage and round trip improve wherever it runs. On 2 of the reproduce suite's 24 rows it still ended a few percent
-worse than its start. Geodesic distortion, WKS preservation and edge stretch did not flag those rows without also
-rejecting gains such as FAUST's.
+coverage and round trip improve wherever it runs. Before its anchor (plugins/rhm.py), RHM ended a few percent worse
+than its start on 2 of the reproduce suite's 24 rows. Geodesic distortion, WKS preservation and edge stretch did not
+flag those rows without also rejecting gains such as FAUST's. The anchor removed both regressions inside RHM itself.
 """
 
 from __future__ import annotations
