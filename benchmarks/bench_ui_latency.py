@@ -15,6 +15,9 @@ web UI in headless Chromium (WebGL through SwiftShader, i.e. drawn on the CPU). 
   (``PerformanceObserver('longtask')``) and the longest gap between animation frames while the session loads
   and while ``--large-curves`` curves are added; the page counts as frozen from a gap of 1 s.
 
+``--pause S`` waits S seconds after each curve, as a person would between curves: from about 1.5 s the
+landmark prior (computed once a session has had no new curve for a second) runs beside the next curve's clicks.
+
 ``--scan-level L`` measures ``latency`` on FAUST tr_reg_000 -> tr_reg_011 subdivided L times instead
 (``trimesh.remesh.subdivide``, generated at run time and uploaded as PLY, never written to disk: 110,210 vertices
 for L = 2, where issue 14's budget is p95 <= 150 ms). Shapes above the server's ``CURVEFM_DISPLAY_VERTICES``
@@ -29,7 +32,7 @@ the first request for the copy (which makes it).
 Endpoints are pairs of vertices visible on both shapes with the same id (TOSCA poses of one class, and FAUST
 registrations, correspond by id), sampled on a grid over the source canvas, at least 120 pixels apart. Prints JSON.
 
-Usage: ``python benchmarks/bench_ui_latency.py [--data DIR] [--curves N] [--large-curves M] [--no-large]
+Usage: ``python benchmarks/bench_ui_latency.py [--data DIR] [--curves N] [--pause S] [--large-curves M] [--no-large]
 [--scan-level L] [--transfer-levels L ...] [--transfer-reads N]``
 """
 
@@ -117,11 +120,15 @@ def percentile(values: list[float], q: float) -> float:
     return round(float(np.percentile(values, q)), 1)
 
 
-def measure_latency(browser, url: str, token: str, session_id: str, n_vertices: int, curves: int, pair: str) -> dict:
+def measure_latency(browser, url: str, token: str, session_id: str, n_vertices: int, curves: int, pair: str,
+                    pause_s: float = 0.0) -> dict:  # fmt: skip
     page = browser.new_page(viewport=VIEWPORT)
     open_session(page, url, session_id, token, timeout_ms=120_000)
     pairs = endpoint_pairs(pickable_vertices(page), curves)
-    samples = [click_curve(page, list(pair)) for pair in pairs]
+    samples = []
+    for pair in pairs:
+        samples.append(click_curve(page, list(pair)))
+        time.sleep(pause_s)
     page.close()
     total = [s["totalMs"] for s in samples]
     return {
@@ -129,6 +136,7 @@ def measure_latency(browser, url: str, token: str, session_id: str, n_vertices: 
         "vertices": n_vertices,
         "k": K,
         "curves": curves,
+        "pause_s": pause_s,
         "click_to_texture_ms": {"p50": percentile(total, 50), "p95": percentile(total, 95), "max": max(total)},
         "parts_median_ms": {
             part: percentile([s[key] for s in samples], 50)
@@ -226,7 +234,7 @@ def measure_in_browser(browser, client: httpx.Client, url: str, token: str, args
     if args.curves:
         files, pair = pair_files(args.scan_level, LATENCY_PAIR)
         session_id, n = prepare_session(client, files)
-        result["latency"] = measure_latency(browser, url, token, session_id, n, args.curves, pair)
+        result["latency"] = measure_latency(browser, url, token, session_id, n, args.curves, pair, args.pause)
     if not args.no_large:
         files, pair = pair_files(args.scan_level, LARGE_PAIR)
         session_id, n = prepare_session(client, files)
@@ -238,6 +246,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--data", default=os.environ.get("CURVEFM_BENCH_DATA", "/tmp/curvefm-bench"))
     parser.add_argument("--curves", type=int, default=20, help="0: no latency run (with --no-large: no browser)")
+    parser.add_argument("--pause", type=float, default=0.0,
+                        help="seconds between curves: from about 1.5, the landmark prior runs beside the next clicks")
     parser.add_argument("--large-curves", type=int, default=3)
     parser.add_argument("--no-large", action="store_true", help="skip the 50k-vertex responsiveness check")
     parser.add_argument("--scan-level", type=int, default=0, help="latency on FAUST subdivided this many times")

@@ -17,7 +17,8 @@ export async function carriedRows() {
   return carried && carried.rows;
 }
 
-/** carriedRows with the time the service spent solving the map for it: { rows, solveMs } or null. */
+/** carriedRows with the time the service spent solving the map for it and whether the landmark prior is still to
+ * land: { rows, solveMs, priorPending } or null. */
 export async function carriedFunction() {
   const ticket = nextTransferTicket();
   const { fn } = state;
@@ -31,17 +32,18 @@ export async function carriedFunction() {
   const { values, solveMs, priorPending } = await api.transfer(state.session.id, fn, vertices);
   if (ticket !== state.transferTicket) return null;
   if (priorPending) showWhenPriorLands(ticket);
-  return { rows: values, solveMs };
+  return { rows: values, solveMs, priorPending };
 }
 
 /** The service is still computing the landmark prior for the current curves: show the better map when it lands
- * (unless something newer has been asked for meanwhile). */
+ * (unless something newer has been asked for meanwhile). Until then the map is the one on screen, so a read that
+ * finds the prior still pending paints nothing: repainting 28k vertices took the cores from the next clicks. */
 function showWhenPriorLands(ticket) {
   setTimeout(async () => {
     if (ticket !== state.transferTicket) return;
     try {
-      const rows = await carriedRows();
-      if (rows !== null) paint("target", state.fn, rows);
+      const carried = await carriedFunction();
+      if (carried !== null && !carried.priorPending) paint("target", state.fn, carried.rows);
     } catch {
       // a refresh in the background: a lost connection has its banner, and the next change shows the map
     }
