@@ -331,12 +331,7 @@ def coarse_reversible_harmonic_maps(
     vertex, give the projection step of the last iteration at full resolution (curves pinned, anchored)."""
     progress(0.0, f"decimating both shapes to about {params.coarse_vertices} vertices")
     M, N = _Coarse.of(pair.mesh_M, params.coarse_vertices), _Coarse.of(pair.mesh_N, params.coarse_vertices)
-    start, coarse_anchor = (
-        None
-        if m is None
-        else PointwiseMaps(p2p_NM=M.coarse_ids[m.p2p_NM[N.fine_ids]], p2p_MN=N.coarse_ids[m.p2p_MN[M.fine_ids]])
-        for m in (maps, anchor)
-    )
+    start, coarse_anchor = _on_copies(maps, M, N), None if anchor is None else _on_copies(anchor, M, N)
     pins = CurvePins.from_curves(M.mesh, N.mesh, [(M.path(path_M), N.path(path_N)) for path_M, path_N in curves])
     progress(0.05, "geodesic embeddings of the decimated shapes")
     shape_M, shape_N = prepare_shape(M.mesh, params), prepare_shape(N.mesh, params)
@@ -348,12 +343,16 @@ def coarse_reversible_harmonic_maps(
     fine_pins = CurvePins.from_curves(pair.mesh_M, pair.mesh_N, curves)
     p2p_NM = fine_pins.pin_NM(nearest_vertices(X_MN, X_M, X_N, X_NM, params.alpha, beta))
     p2p_MN = fine_pins.pin_MN(nearest_vertices(X_NM, X_N, X_M, X_MN, params.alpha, beta))
-    if anchor is None:
-        return PointwiseMaps(p2p_NM=p2p_NM, p2p_MN=p2p_MN)
+    anchor_NM, anchor_MN = (None, None) if anchor is None else (anchor.p2p_NM, anchor.p2p_MN)
     return PointwiseMaps(
-        p2p_NM=near_anchor(p2p_NM, anchor.p2p_NM, X_M, params.anchor_radius),
-        p2p_MN=near_anchor(p2p_MN, anchor.p2p_MN, X_N, params.anchor_radius),
+        p2p_NM=near_anchor(p2p_NM, anchor_NM, X_M, params.anchor_radius),
+        p2p_MN=near_anchor(p2p_MN, anchor_MN, X_N, params.anchor_radius),
     )
+
+
+def _on_copies(maps: PointwiseMaps, M: _Coarse, N: _Coarse) -> PointwiseMaps:
+    """``maps`` between the decimated copies: each coarse vertex takes its nearest fine vertex's image."""
+    return PointwiseMaps(p2p_NM=M.coarse_ids[maps.p2p_NM[N.fine_ids]], p2p_MN=N.coarse_ids[maps.p2p_MN[M.fine_ids]])
 
 
 def nearest_vertices(
