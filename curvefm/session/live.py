@@ -17,7 +17,6 @@ write.
 
 from __future__ import annotations
 
-import os
 import threading
 import zlib
 from collections.abc import Iterator
@@ -31,6 +30,7 @@ from curvefm.errors import NotFound, shown
 from curvefm.fmap import CurveMapSolver, FunctionTransfer, RoundTripQuality
 from curvefm.geometry import DisplayMesh, Mesh, display_mesh
 from curvefm.session.pair import BasisNeed, ShapePair, basis_needs, build_solver, internal_paths, load_basis
+from curvefm.session.prior_process import PriorProcess
 from curvefm.session.record import SessionRecord
 from curvefm.session.record_store import SessionBusy, SessionStore
 from curvefm.spectral import Basis
@@ -83,9 +83,10 @@ class LiveSessions:
         self._sessions: LRU[LiveSession] = LRU(size)
         self._locks = tuple(threading.Lock() for _ in range(LOCK_STRIPES))
         self._executor = ThreadPoolExecutor(2, thread_name_prefix="curvefm-columns")
-        # one thread for every session's landmark prior (0.3-1.5 s each), at low priority, so that it never delays
-        # a column solve or a trace
-        self._prior_executor = ThreadPoolExecutor(1, thread_name_prefix="curvefm-priors", initializer=_lower_priority)
+        # every session's landmark prior (1-2 s of a core each at 28k vertices) is computed in one child process; a
+        # thread here waits for each (PRIOR_DELAY_S without a new curve, then the child's answer)
+        self._prior_process = PriorProcess()
+        self._prior_executor = ThreadPoolExecutor(1, thread_name_prefix="curvefm-priors")
 
     def lock(self, session_id: str) -> threading.Lock:
         """The lock to hold while using or changing session ``session_id``."""
@@ -158,6 +159,7 @@ class LiveSessions:
         self._sessions.clear()
         self._executor.shutdown()
         self._prior_executor.shutdown(cancel_futures=True)
+        self._prior_process.close()
 
     def _current(self, session_id: str) -> LiveSession:
         """The live session as of its record on disk: built when not cached, brought up to date when another
@@ -179,16 +181,9 @@ class LiveSessions:
         small = max(mesh.n_vertices for mesh in meshes) <= self.prior_max_vertices
         solver = build_solver(
             record, pair, interactive=True, executor=self._executor,
-            prior_executor=self._prior_executor if small else None, landmark_prior=small,
+            prior_executor=self._prior_executor if small else None, prior_maps=self._prior_process.landmark_maps,
+            landmark_prior=small,
         )  # fmt: skip
         for mesh in pair.meshes:
             mesh.edge_graph  # noqa: B018  (cached property: built here so the first trace answers at once)
         return LiveSession(record, pair, solver, LRU(8), LRU(2))
-
-
-def _lower_priority() -> None:
-    """Run the calling thread at nice 10 (Linux schedules threads one by one; elsewhere nothing changes)."""
-    try:
-        os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 10)
-    except (AttributeError, OSError):
-        pass

@@ -3,13 +3,14 @@ the session's solver rebuilt from them."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from concurrent.futures import Executor
 from dataclasses import dataclass
 
 import numpy as np
 
 from curvefm.errors import Conflict
-from curvefm.fmap import CombinedMapSolver, CurveMapSolver
+from curvefm.fmap import CombinedMapSolver, CurveMapSolver, FunctionalMaps, landmark_maps
 from curvefm.session.record import CurveRecord, SessionRecord
 from curvefm.spectral import Basis, ShapePair
 from curvefm.store import Store
@@ -77,14 +78,17 @@ def build_solver(
     interactive: bool = False,
     executor: Executor | None = None,
     prior_executor: Executor | None = None,
+    prior_maps: Callable[..., FunctionalMaps] = landmark_maps,
     landmark_prior: bool = True,
 ) -> CurveMapSolver:
     """The session's solver (of the record's energy) with all its curves, under the same curve ids as in the record.
-    ``prior_executor``: where the combined energy computes its landmark prior (see :class:`CombinedMapSolver`);
-    ``landmark_prior=False``: the combined energy without it."""
+    ``prior_executor`` and ``prior_maps``: where and how the combined energy computes its landmark prior (see
+    :class:`CombinedMapSolver`); ``landmark_prior=False``: the combined energy without it."""
     background = {}
-    if record.energy == "combined":
-        background = {"prior_executor": prior_executor} if landmark_prior else {"prior_weight": 0.0}
+    if record.energy == "combined" and landmark_prior:
+        background = {"prior_executor": prior_executor, "prior_maps": prior_maps}
+    elif record.energy == "combined":
+        background = {"prior_weight": 0.0}
     solver = SOLVERS[record.energy](
         pair.mesh_M.vertices,
         pair.basis_M,
