@@ -2,6 +2,8 @@
 independent dense least-squares solve, incremental edits against a fresh solve, sessions that keep their energy,
 and its accuracy on a real pair with ground truth."""
 
+import threading
+import time
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -11,7 +13,13 @@ from shapes import basis_of, ellipsoid
 from curvefm import registry
 from curvefm.evaluation import ground_truth_curves, ground_truth_for, score
 from curvefm.fmap import DEFAULT_PRIOR_WEIGHT, CombinedMapSolver, CurveMapSolver, Hints, landmark_maps, restrict
-from curvefm.fmap.combined import ONE_CURVE_PRIOR_FACTOR, kernel_coefficients, kernel_filters, signature_coefficients
+from curvefm.fmap.combined import (
+    ONE_CURVE_PRIOR_FACTOR,
+    PRIOR_DELAY_S,
+    kernel_coefficients,
+    kernel_filters,
+    signature_coefficients,
+)
 from curvefm.fmap.landmark_prior import NoLongerWanted
 from curvefm.geometry import load_mesh, shortest_path
 from curvefm.matching import match
@@ -122,6 +130,27 @@ def test_an_interactive_solver_computes_the_prior_in_the_background(shapes, path
             live.remove_curve(gone)
             assert not live.prior_pending  # back to the endpoints the prior was computed for
             assert np.allclose(live.C_MN, at_once.C_MN, rtol=0, atol=1e-12)
+
+
+def test_an_edit_stops_a_running_prior_for_other_endpoints_before_the_maps_are_read(shapes, paths):
+    asked_for, gave_up = [], threading.Event()
+
+    def prior_until_unwanted(basis_M, basis_N, landmarks, wanted):  # stands in for a long computation
+        asked_for.append(len(landmarks))
+        deadline = time.monotonic() + 30
+        while wanted() and time.monotonic() < deadline:
+            time.sleep(0.005)
+        if not wanted():
+            gave_up.set()
+        raise NoLongerWanted
+
+    with ThreadPoolExecutor(1) as background:
+        with solver_on(shapes, interactive=True, prior_executor=background, prior_maps=prior_until_unwanted) as live:
+            live.add_curves([(*paths[0], 1.0)])
+            live.C_MN  # noqa: B018  (starts the job: it waits PRIOR_DELAY_S, then computes until unwanted)
+            live.add_curves([(*paths[1], 1.0)])  # nothing read since
+            assert gave_up.wait(PRIOR_DELAY_S + 10)
+            assert asked_for == [2]  # the first curve's two endpoints; no job yet for the new ones
 
 
 def test_a_prior_no_longer_wanted_stops_at_its_next_step(shapes, paths):

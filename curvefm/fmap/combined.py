@@ -174,6 +174,11 @@ class CombinedMapSolver(CurveMapSolver):
         W_M, W_N, W_B = self._signatures
         return G_M + W_M, G_N + W_N, B + W_B
 
+    def _solve(self) -> None:
+        if self._prior_job is not None:  # a running job for other endpoints gives up now, not at the next read
+            self._wanted = self._landmarks()
+        super()._solve()
+
     # -- the landmark prior -----------------------------------------------------------------------------
     @property
     def C_MN(self) -> np.ndarray:
