@@ -126,8 +126,8 @@ def measure_latency(browser, url: str, token: str, session_id: str, n_vertices: 
     open_session(page, url, session_id, token, timeout_ms=120_000)
     pairs = endpoint_pairs(pickable_vertices(page), curves)
     samples = []
-    for pair in pairs:
-        samples.append(click_curve(page, list(pair)))
+    for ends in pairs:
+        samples.append(click_curve(page, list(ends)))
         time.sleep(pause_s)
     page.close()
     total = [s["totalMs"] for s in samples]
