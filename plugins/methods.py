@@ -29,6 +29,7 @@ from curvefm.fmap import (
     EXACT_MAX_K,
     FULL_SIZE_CURVES,
     KERNEL_POINTS,
+    NON_ISOMETRIC_DISTORTION,
     CombinedMapSolver,
     CurveMapSolver,
     FunctionalMaps,
@@ -36,6 +37,7 @@ from curvefm.fmap import (
     NO17Settings,
     balanced_weights,
     check_method_k,
+    curves_alone_suffice,
     descriptor_functions,
     descriptor_least_squares,
     descriptor_part,
@@ -76,6 +78,11 @@ class CombinedParams(CurvesParams):
         FULL_SIZE_CURVES, ge=1, le=100_000, description="with fewer curves than this (and a prior) the map has the "
         "prior's size, 50 x 50: its higher frequencies are not determined yet and would blur the pointwise map",
     )
+    non_isometric_distortion: float = Field(
+        NON_ISOMETRIC_DISTORTION, ge=0, description="from 10 curves on, a pair whose curve endpoints' geodesic "
+        "distances differ by more than this (median |log ratio|, shapes scaled to unit area) is solved with the "
+        "curve energy alone: the descriptors and the prior assume a near-isometry",
+    )
 
 
 def run_curves(
@@ -87,7 +94,11 @@ def run_curves(
 def run_combined(
     pair: ShapePair, hints: Hints, params: CombinedParams, progress: Progress = no_progress
 ) -> FunctionalMaps:
-    return _solve_curves(CombinedMapSolver, pair, hints, params.model_dump(), progress)
+    if curves_alone_suffice(pair.mesh_M, pair.mesh_N, hints.curves, params.non_isometric_distortion):
+        curve_energy = CurvesParams(alpha=params.alpha, samples=params.samples)  # the descriptors would mislead
+        return _solve_curves(CurveMapSolver, pair, hints, curve_energy.model_dump(), progress)
+    energy = params.model_dump(exclude={"non_isometric_distortion"})
+    return _solve_curves(CombinedMapSolver, pair, hints, energy, progress)
 
 
 def _solve_curves(

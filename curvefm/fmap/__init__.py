@@ -30,7 +30,10 @@ from curvefm.fmap.combined import (
     DEFAULT_PRIOR_WEIGHT,
     FULL_SIZE_CURVES,
     KERNEL_POINTS,
+    NON_ISOMETRIC_DISTORTION,
     CombinedMapSolver,
+    curves_alone_suffice,
+    landmark_distortion,
 )
 from curvefm.fmap.landmark_prior import NO17Settings, descriptor_functions, descriptor_part, landmark_maps, no17_maps
 from curvefm.fmap.maps import FunctionalMaps, Hints, curve_endpoints
@@ -59,6 +62,7 @@ __all__ = [
     "Hints",
     "KERNEL_POINTS",
     "NO17Settings",
+    "NON_ISOMETRIC_DISTORTION",
     "PARALLEL_MIN_SIZE",
     "Prior",
     "RIDGE",
@@ -70,10 +74,12 @@ __all__ = [
     "column_ridge",
     "conjugate_gradient_solve",
     "curve_endpoints",
+    "curves_alone_suffice",
     "descriptor_functions",
     "descriptor_least_squares",
     "descriptor_part",
     "effective_count",
+    "landmark_distortion",
     "landmark_maps",
     "lbfgs",
     "no17_maps",

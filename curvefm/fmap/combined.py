@@ -35,6 +35,13 @@ per set of endpoints (in the background for an interactive solver). Below ``FULL
 handed out at the prior's size: its higher frequencies are not determined by so few curves, and converted to
 points they only blurred the map (FAUST, 2 curves: 0.043 at 120 x 120, 0.031 at 50 x 50). Both settings come
 from benchmarks/bench_combined_prior.py (README, "The landmark prior").
+
+Strongly non-isometric pairs. Wave kernel signatures, kernel maps and NO17 assume a near-isometry; where the shapes
+are far from one (TOSCA's horse -> cat) they pull the map away from what the curves say, and from
+``CURVES_ALONE_FROM`` curves on the pure curve energy is the better map. The only measure of isometry a user's input
+gives is the curves' endpoints: :func:`landmark_distortion` compares their geodesic distances on both shapes, and
+above ``NON_ISOMETRIC_DISTORTION`` the ``combined`` method solves the curve energy alone
+(:func:`curves_alone_suffice`; benchmarks/bench_isometry_rule.py).
 """
 
 from __future__ import annotations
@@ -45,6 +52,7 @@ from collections.abc import Callable
 from concurrent.futures import Executor, Future, wait
 
 import numpy as np
+from scipy.sparse.csgraph import dijkstra
 
 from curvefm.cache import LRU
 from curvefm.errors import CurvefmError
@@ -52,6 +60,7 @@ from curvefm.fmap.column_solve import Prior
 from curvefm.fmap.landmark_prior import NO17Settings, NoLongerWanted, landmark_maps
 from curvefm.fmap.maps import FunctionalMaps, curve_endpoints
 from curvefm.fmap.solver import CurveMapSolver, basis_digest
+from curvefm.geometry import Mesh
 from curvefm.spectral import Basis, energy_filters, normalised, wave_kernel_signature
 
 # Chosen by the sweep in benchmarks/bench_combined_weights.py (see the README, "Choosing the combined energy's
@@ -75,6 +84,16 @@ PRIOR_DELAY_S = 1.0
 """A live session's prior is computed once it has had no new curve for this long: in the browser benchmark, priors
 computed beside back-to-back clicks took click-to-texture p95 at 28k vertices from 79 to 146-164 ms (computed after
 every click) and from 89 to 130 ms (after 0.5 s without a new curve)."""
+NON_ISOMETRIC_DISTORTION = 0.15
+"""A pair whose :func:`landmark_distortion` exceeds this counts as strongly non-isometric. Chosen by
+benchmarks/bench_isometry_rule.py on `curvefm reproduce`'s suite: with 10 curves TOSCA's horse -> cat measured
+0.17-0.20 and david -> gorilla 0.15-0.19, while every pair the descriptors help stayed below it (cat0 -> cat2 at most
+0.13, cat -> lion 0.11, wolf -> dog 0.11, FAUST 0.10). Every threshold from 0.14 to 0.16 won the same 24 of 25
+cells; the gap it sits in (0.13 to 0.15) is narrow and was measured on the same runs."""
+CURVES_ALONE_FROM = 10
+"""From this many curves a strongly non-isometric pair is solved with the curve energy alone. With fewer, the curves
+do not determine the map and the descriptors still help on average (TOSCA across classes, 5 curves: combined 0.046,
+curves 0.047), and the distortion of so few landmarks is noisy (TOSCA's cat0 -> cat2 reached 0.16 with 5 curves)."""
 SUPERSEDED = object()  # what a prior job returns when newer endpoints were asked for while it waited
 ENERGIES = 20
 SIGMA = 0.06
@@ -115,6 +134,30 @@ def kernel_coefficients(restricted: np.ndarray, filters: np.ndarray, points: int
     kernels = kernels.reshape(-1, k)
     kernels /= np.maximum(np.linalg.norm(kernels, axis=1, keepdims=True), 1e-300)
     return kernels.T
+
+
+def landmark_distortion(mesh_M: Mesh, mesh_N: Mesh, landmarks: np.ndarray) -> float:
+    """How far from an isometry corresponding landmarks say the pair is: the median over pairs of landmarks
+    ``(a, b)`` of ``|log(d_N(a', b') / d_M(a, b))|``, with shortest-path distances on each mesh's edge graph and
+    each shape scaled to unit area. ``landmarks``: ``(vertex on M, vertex on N)`` rows. 0 for fewer than two."""
+    pairs = np.triu_indices(len(landmarks), 1)
+    d_M, d_N = (_scaled_distances(mesh, landmarks[:, side])[pairs] for mesh, side in ((mesh_M, 0), (mesh_N, 1)))
+    apart = (d_M > 0) & (d_N > 0)  # two landmarks may share a vertex on one shape
+    ratios = np.log(d_N[apart] / d_M[apart])
+    return float(np.median(np.abs(ratios))) if len(ratios) else 0.0
+
+
+def _scaled_distances(mesh: Mesh, vertices: np.ndarray) -> np.ndarray:
+    """Shortest-path distances between ``vertices`` on the mesh's edge graph, the mesh scaled to unit area."""
+    return dijkstra(mesh.edge_graph, directed=False, indices=vertices)[:, vertices] / np.sqrt(mesh.area)
+
+
+def curves_alone_suffice(mesh_M: Mesh, mesh_N: Mesh, curves, threshold: float = NON_ISOMETRIC_DISTORTION) -> bool:
+    """Whether the ``combined`` method should solve the pure curve energy for these ``(path_M, path_N)`` curves:
+    from ``CURVES_ALONE_FROM`` of them on a pair their endpoints show strongly non-isometric."""
+    if len(curves) < CURVES_ALONE_FROM:
+        return False
+    return landmark_distortion(mesh_M, mesh_N, curve_endpoints(curves)) > threshold
 
 
 class CombinedMapSolver(CurveMapSolver):
