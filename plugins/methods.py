@@ -70,31 +70,37 @@ class CombinedParams(CurvesParams):
         KERNEL_POINTS, ge=2, le=100, description="curve samples with wave kernel maps, endpoints included"
     )
     prior_weight: float = Field(
-        DEFAULT_PRIOR_WEIGHT, ge=0, description="weight of the landmark prior (NO17's map from the curves' endpoints) "
+        DEFAULT_PRIOR_WEIGHT,
+        ge=0,
+        description="weight of the landmark prior (NO17's map from the curves' endpoints) "
         "relative to the curve systems' mean diagonal, doubled with a single curve; 0: no prior, and the map always "
         "has the basis's size",
     )
     full_size_curves: int = Field(
-        FULL_SIZE_CURVES, ge=1, le=100_000, description="with fewer curves than this (and a prior) the map has the "
+        FULL_SIZE_CURVES,
+        ge=1,
+        le=100_000,
+        description="with fewer curves than this (and a prior) the map has the "
         "prior's size, 50 x 50: its higher frequencies are not determined yet and would blur the pointwise map",
     )
     non_isometric_distortion: float = Field(
-        NON_ISOMETRIC_DISTORTION, ge=0, description="from 10 curves on, a pair whose curve endpoints' geodesic "
-        "distances differ by more than this (median |log ratio|, shapes scaled to unit area) is solved with the "
-        "curve energy alone: the descriptors and the prior assume a near-isometry",
+        NON_ISOMETRIC_DISTORTION,
+        ge=0,
+        description="from 10 curves until full_size_curves, a pair whose curve "
+        "endpoints' biharmonic distances differ by more than this (median |log ratio|, shapes scaled to unit area) "
+        "is solved with the curve energy alone: the descriptors and the prior assume a near-isometry",
     )
 
 
-def run_curves(
-    pair: ShapePair, hints: Hints, params: CurvesParams, progress: Progress = no_progress
-) -> FunctionalMaps:
+def run_curves(pair: ShapePair, hints: Hints, params: CurvesParams, progress: Progress = no_progress) -> FunctionalMaps:
     return _solve_curves(CurveMapSolver, pair, hints, params.model_dump(), progress)
 
 
 def run_combined(
     pair: ShapePair, hints: Hints, params: CombinedParams, progress: Progress = no_progress
 ) -> FunctionalMaps:
-    if curves_alone_suffice(pair.mesh_M, pair.mesh_N, hints.curves, params.non_isometric_distortion):
+    if curves_alone_suffice(pair.basis_M, pair.basis_N, hints.curves, params.full_size_curves,
+                            params.non_isometric_distortion):  # fmt: skip
         curve_energy = CurvesParams(alpha=params.alpha, samples=params.samples)  # the descriptors would mislead
         return _solve_curves(CurveMapSolver, pair, hints, curve_energy.model_dump(), progress)
     energy = params.model_dump(exclude={"non_isometric_distortion"})
@@ -121,9 +127,7 @@ class DescriptorParams(BaseModel):
     spectrum: int = Field(
         NO17_DEFAULTS.spectrum, ge=3, le=1000, description="eigenpairs used to build the wave kernels"
     )
-    energies: int = Field(
-        NO17_DEFAULTS.energies, ge=1, le=500, description="log-energies per wave kernel descriptor"
-    )
+    energies: int = Field(NO17_DEFAULTS.energies, ge=1, le=500, description="log-energies per wave kernel descriptor")
     sigma: float = Field(
         NO17_DEFAULTS.sigma, gt=0, description="filter width as a fraction of the log-eigenvalue range"
     )
@@ -133,7 +137,9 @@ class DescriptorParams(BaseModel):
         description="the energies start and end this many filter widths inside the log-eigenvalue range",
     )
     mu: float = Field(
-        1.0, ge=0, description="weight of Laplacian commutativity relative to descriptor preservation (each "
+        1.0,
+        ge=0,
+        description="weight of Laplacian commutativity relative to descriptor preservation (each "
         "term divided by its typical size)",
     )
     landmarks: bool = Field(
@@ -143,7 +149,9 @@ class DescriptorParams(BaseModel):
 
 class NO17Params(DescriptorParams):
     mu: float = Field(
-        NO17_DEFAULTS.mu, ge=0, description="weight of Laplacian commutativity relative to descriptor preservation "
+        NO17_DEFAULTS.mu,
+        ge=0,
+        description="weight of Laplacian commutativity relative to descriptor preservation "
         "(each term divided by its typical size)",
     )
     inputs: Literal["landmarks", "curves"] = Field(
@@ -165,9 +173,7 @@ class NO17Params(DescriptorParams):
     )
 
 
-def landmark_descriptors(
-    pair: ShapePair, hints: Hints, params: DescriptorParams
-) -> tuple[np.ndarray, np.ndarray]:
+def landmark_descriptors(pair: ShapePair, hints: Hints, params: DescriptorParams) -> tuple[np.ndarray, np.ndarray]:
     """Corresponding descriptor columns on M and N: WKS, and the wave kernel maps at the landmarks."""
     if params.landmarks and len(hints.landmarks) == 0:
         raise InvalidInput("the descriptor methods need at least one landmark (or one curve), or landmarks=false")

@@ -267,6 +267,7 @@ class SessionEditor:
         except BaseException:
             self.live.drop(live.record.id)
             raise
+        self.live.fit_energy(live)
 
 
 def source_function(

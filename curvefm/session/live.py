@@ -29,7 +29,15 @@ from curvefm.cache import LRU
 from curvefm.errors import NotFound, shown
 from curvefm.fmap import CurveMapSolver, FunctionTransfer, RoundTripQuality
 from curvefm.geometry import DisplayMesh, Mesh, display_mesh
-from curvefm.session.pair import BasisNeed, ShapePair, basis_needs, build_solver, internal_paths, load_basis
+from curvefm.session.pair import (
+    BasisNeed,
+    ShapePair,
+    basis_needs,
+    build_solver,
+    energy_solver,
+    internal_paths,
+    load_basis,
+)
 from curvefm.session.prior_process import PriorProcess
 from curvefm.session.record import SessionRecord
 from curvefm.session.record_store import SessionBusy, SessionStore
@@ -169,21 +177,31 @@ class LiveSessions:
         if record is not None:
             live.solver.sync({c.id: (*internal_paths(live.pair, c), c.spec.weight) for c in record.curves})
             live.record = record
+            self.fit_energy(live)
         return live
 
     def _build(self, record: SessionRecord) -> LiveSession:
         need_M, need_N = basis_needs(record)
         meshes = self.mesh(record.source, "source"), self.mesh(record.target, "target")
         pair = ShapePair(*meshes, self.basis(need_M), self.basis(need_N))
+        for mesh in pair.meshes:
+            mesh.edge_graph  # noqa: B018  (cached property: built here so the first trace answers at once)
+        return LiveSession(record, pair, self._solver(record, pair), LRU(8), LRU(2))
+
+    def fit_energy(self, live: LiveSession) -> None:
+        """Rebuild the session's solver when its curves now call for the other energy (:func:`energy_solver`: a
+        combined session's curves can show the pair strongly non-isometric, or stop doing so)."""
+        if type(live.solver) is not energy_solver(live.record, live.pair):
+            live.solver.close()
+            live.solver = self._solver(live.record, live.pair)
+
+    def _solver(self, record: SessionRecord, pair: ShapePair) -> CurveMapSolver:
         # an edit solves only the map the texture needs, on one thread: with the cores shared (other sessions,
         # or the browser in bench_ui_latency) that took the solve from 11-13 to 8 ms
         # the landmark prior costs seconds of a core per edit on big meshes (its descriptors are O(n) each)
-        small = max(mesh.n_vertices for mesh in meshes) <= self.prior_max_vertices
-        solver = build_solver(
+        small = max(mesh.n_vertices for mesh in pair.meshes) <= self.prior_max_vertices
+        return build_solver(
             record, pair, interactive=True, executor=self._executor,
             prior_executor=self._prior_executor if small else None, prior_maps=self._prior_process.landmark_maps,
             landmark_prior=small,
         )  # fmt: skip
-        for mesh in pair.meshes:
-            mesh.edge_graph  # noqa: B018  (cached property: built here so the first trace answers at once)
-        return LiveSession(record, pair, solver, LRU(8), LRU(2))

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from curvefm.errors import Conflict
-from curvefm.fmap import CombinedMapSolver, CurveMapSolver, FunctionalMaps, landmark_maps
+from curvefm.fmap import CombinedMapSolver, CurveMapSolver, FunctionalMaps, curves_alone_suffice, landmark_maps
 from curvefm.session.record import CurveRecord, SessionRecord
 from curvefm.spectral import Basis, ShapePair
 from curvefm.store import Store
@@ -72,6 +72,17 @@ def internal_paths(pair: ShapePair, curve: CurveRecord) -> tuple[np.ndarray, np.
 SOLVERS: dict[str, type[CurveMapSolver]] = {"curves": CurveMapSolver, "combined": CombinedMapSolver}
 
 
+def energy_solver(record: SessionRecord, pair: ShapePair) -> type[CurveMapSolver]:
+    """The solver class for the record's energy and curves: a combined session whose curves show the pair strongly
+    non-isometric is solved with the curve energy alone (:func:`curvefm.fmap.curves_alone_suffice`), as the
+    ``combined`` method does."""
+    if record.energy == "combined":
+        curves = [internal_paths(pair, curve) for curve in record.curves]
+        if curves_alone_suffice(pair.basis_M, pair.basis_N, curves):
+            return CurveMapSolver
+    return SOLVERS[record.energy]
+
+
 def build_solver(
     record: SessionRecord,
     pair: ShapePair,
@@ -81,15 +92,16 @@ def build_solver(
     prior_maps: Callable[..., FunctionalMaps] = landmark_maps,
     landmark_prior: bool = True,
 ) -> CurveMapSolver:
-    """The session's solver (of the record's energy) with all its curves, under the same curve ids as in the record.
+    """The session's solver (:func:`energy_solver`) with all its curves, under the same curve ids as in the record.
     ``prior_executor`` and ``prior_maps``: where and how the combined energy computes its landmark prior (see
     :class:`CombinedMapSolver`); ``landmark_prior=False``: the combined energy without it."""
+    solver_class = energy_solver(record, pair)
     background = {}
-    if record.energy == "combined" and landmark_prior:
+    if solver_class is CombinedMapSolver and landmark_prior:
         background = {"prior_executor": prior_executor, "prior_maps": prior_maps}
-    elif record.energy == "combined":
+    elif solver_class is CombinedMapSolver:
         background = {"prior_weight": 0.0}
-    solver = SOLVERS[record.energy](
+    solver = solver_class(
         pair.mesh_M.vertices,
         pair.basis_M,
         pair.mesh_N.vertices,
