@@ -12,7 +12,15 @@ from shapes import basis_of, ellipsoid
 
 from curvefm import registry
 from curvefm.evaluation import ground_truth_curves, ground_truth_for, score
-from curvefm.fmap import DEFAULT_PRIOR_WEIGHT, CombinedMapSolver, CurveMapSolver, Hints, landmark_maps, restrict
+from curvefm.fmap import (
+    DEFAULT_PRIOR_WEIGHT,
+    CombinedMapSolver,
+    CurveMapSolver,
+    Hints,
+    combined,
+    landmark_maps,
+    restrict,
+)
 from curvefm.fmap.combined import (
     ONE_CURVE_PRIOR_FACTOR,
     PRIOR_DELAY_S,
@@ -132,7 +140,7 @@ def test_an_interactive_solver_computes_the_prior_in_the_background(shapes, path
             assert np.allclose(live.C_MN, at_once.C_MN, rtol=0, atol=1e-12)
 
 
-def test_an_edit_stops_a_running_prior_for_other_endpoints_before_the_maps_are_read(shapes, paths):
+def test_an_edit_stops_a_running_prior_for_other_endpoints_before_the_maps_are_read(shapes, paths, monkeypatch):
     asked_for, gave_up = [], threading.Event()
 
     def prior_until_unwanted(basis_M, basis_N, landmarks, wanted):  # stands in for a long computation
@@ -144,8 +152,9 @@ def test_an_edit_stops_a_running_prior_for_other_endpoints_before_the_maps_are_r
             gave_up.set()
         raise NoLongerWanted
 
+    monkeypatch.setattr(combined, "landmark_maps", prior_until_unwanted)
     with ThreadPoolExecutor(1) as background:
-        with solver_on(shapes, interactive=True, prior_executor=background, prior_maps=prior_until_unwanted) as live:
+        with solver_on(shapes, interactive=True, prior_executor=background) as live:
             live.add_curves([(*paths[0], 1.0)])
             live.C_MN  # noqa: B018  (starts the job: it waits PRIOR_DELAY_S, then computes until unwanted)
             live.add_curves([(*paths[1], 1.0)])  # nothing read since

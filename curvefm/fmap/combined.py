@@ -178,8 +178,7 @@ class CombinedMapSolver(CurveMapSolver):
     ``interactive`` solver given a ``prior_executor`` computes it there (after ``PRIOR_DELAY_S`` without a new
     curve), one job at a time, when its maps are read; until it lands the maps are solved with the last prior
     whose landmarks are all still there (or none), and :attr:`prior_pending` says so. Without an executor it is
-    computed in the solve. ``prior_maps`` computes it: :func:`landmark_maps` in this process, or a drop-in that
-    runs it elsewhere (a live session's :class:`curvefm.session.PriorProcess`).
+    computed in the solve.
     """
 
     def __init__(
@@ -192,7 +191,6 @@ class CombinedMapSolver(CurveMapSolver):
         prior_weight: float = DEFAULT_PRIOR_WEIGHT,
         full_size_curves: int = FULL_SIZE_CURVES,
         prior_executor: Executor | None = None,
-        prior_maps: Callable[..., FunctionalMaps] = landmark_maps,
         **kwargs,
     ):
         super().__init__(*args, alpha=alpha, **kwargs)
@@ -201,7 +199,7 @@ class CombinedMapSolver(CurveMapSolver):
         self.full_size_curves = full_size_curves
         self._signatures = self.descriptor_weight * signature_products(self.basis_M, self.basis_N)
         self._filters_M, self._filters_N = kernel_filters(self.basis_M.evals), kernel_filters(self.basis_N.evals)
-        self._prior_executor, self._prior_maps = prior_executor, prior_maps
+        self._prior_executor = prior_executor
         self._prior: tuple[frozenset, FunctionalMaps] | None = None  # (landmark pairs, NO17's maps from them)
         self._prior_job: tuple[frozenset, Future] | None = None
         self._wanted: frozenset = frozenset()  # the endpoints whose prior was last asked for
@@ -288,7 +286,7 @@ class CombinedMapSolver(CurveMapSolver):
         return Prior(maps.C_MN, weight), Prior(maps.C_NM, weight)
 
     def _compute_prior(self, landmarks: frozenset) -> None:
-        self._prior = (landmarks, _or_none(lambda: self._prior_maps(self.basis_M, self.basis_N, _pairs(landmarks))))
+        self._prior = (landmarks, _or_none(lambda: landmark_maps(self.basis_M, self.basis_N, _pairs(landmarks))))
 
     def _start_prior(self, landmarks: frozenset) -> None:
         if self._prior_executor is None or not self.interactive:
@@ -308,7 +306,7 @@ class CombinedMapSolver(CurveMapSolver):
         time.sleep(PRIOR_DELAY_S)
         try:
             pairs = _pairs(landmarks)
-            return self._prior_maps(self.basis_M, self.basis_N, pairs, wanted=lambda: self._wanted == landmarks)
+            return landmark_maps(self.basis_M, self.basis_N, pairs, wanted=lambda: self._wanted == landmarks)
         except NoLongerWanted:
             return SUPERSEDED
 

@@ -12,8 +12,6 @@ curves a user draws, kept as a record on disk and, in a long-running process, li
   fixed set of locks;
 * ``editing``: :class:`SessionEditor`, the operations (create, add / replace / remove a curve, maps,
   transfer, the maps' round-trip quality), each edit written to disk before it returns;
-* ``prior_process``: :class:`PriorProcess`, the combined energy's landmark prior computed for every live session
-  in one low-priority child process;
 * ``limits``: :class:`SessionLimits`, the configurable bounds on what one request may ask (waypoints, path
   vertices, curves, ``k``).
 """
@@ -40,7 +38,6 @@ from curvefm.session.pair import (
     load_basis,
     load_pair,
 )
-from curvefm.session.prior_process import PriorProcess, PriorUnavailable
 from curvefm.session.record import (
     SHARING_DESCRIPTION,
     Alpha,
@@ -77,8 +74,6 @@ __all__ = [
     "MapSize",
     "MapSummary",
     "MissingBasis",
-    "PriorProcess",
-    "PriorUnavailable",
     "Samples",
     "RecordBusy",
     "RecordFiles",

@@ -17,6 +17,7 @@ write.
 
 from __future__ import annotations
 
+import os
 import threading
 import zlib
 from collections.abc import Iterator
@@ -38,7 +39,6 @@ from curvefm.session.pair import (
     internal_paths,
     load_basis,
 )
-from curvefm.session.prior_process import PriorProcess
 from curvefm.session.record import SessionRecord
 from curvefm.session.record_store import SessionBusy, SessionStore
 from curvefm.spectral import Basis
@@ -91,10 +91,9 @@ class LiveSessions:
         self._sessions: LRU[LiveSession] = LRU(size)
         self._locks = tuple(threading.Lock() for _ in range(LOCK_STRIPES))
         self._executor = ThreadPoolExecutor(2, thread_name_prefix="curvefm-columns")
-        # every session's landmark prior (1-2 s of a core each at 28k vertices) is computed in one child process; a
-        # thread here waits for each (PRIOR_DELAY_S without a new curve, then the child's answer)
-        self._prior_process = PriorProcess()
-        self._prior_executor = ThreadPoolExecutor(1, thread_name_prefix="curvefm-priors")
+        # one thread for every session's landmark prior (0.3-1.5 s each), at low priority, so that it never delays
+        # a column solve or a trace
+        self._prior_executor = ThreadPoolExecutor(1, thread_name_prefix="curvefm-priors", initializer=_lower_priority)
 
     def lock(self, session_id: str) -> threading.Lock:
         """The lock to hold while using or changing session ``session_id``."""
@@ -167,7 +166,6 @@ class LiveSessions:
         self._sessions.clear()
         self._executor.shutdown()
         self._prior_executor.shutdown(cancel_futures=True)
-        self._prior_process.close()
 
     def _current(self, session_id: str) -> LiveSession:
         """The live session as of its record on disk: built when not cached, brought up to date when another
@@ -202,6 +200,13 @@ class LiveSessions:
         small = max(mesh.n_vertices for mesh in pair.meshes) <= self.prior_max_vertices
         return build_solver(
             record, pair, interactive=True, executor=self._executor,
-            prior_executor=self._prior_executor if small else None, prior_maps=self._prior_process.landmark_maps,
-            landmark_prior=small,
+            prior_executor=self._prior_executor if small else None, landmark_prior=small,
         )  # fmt: skip
+
+
+def _lower_priority() -> None:
+    """Run the calling thread at nice 10 (Linux schedules threads one by one; elsewhere nothing changes)."""
+    try:
+        os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 10)
+    except (AttributeError, OSError):
+        pass

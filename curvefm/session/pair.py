@@ -3,14 +3,13 @@ the session's solver rebuilt from them."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from concurrent.futures import Executor
 from dataclasses import dataclass
 
 import numpy as np
 
 from curvefm.errors import Conflict
-from curvefm.fmap import CombinedMapSolver, CurveMapSolver, FunctionalMaps, curves_alone_suffice, landmark_maps
+from curvefm.fmap import CombinedMapSolver, CurveMapSolver, curves_alone_suffice
 from curvefm.session.record import CurveRecord, SessionRecord
 from curvefm.spectral import Basis, ShapePair
 from curvefm.store import Store
@@ -77,8 +76,9 @@ def energy_solver(record: SessionRecord, pair: ShapePair) -> type[CurveMapSolver
     non-isometric is solved with the curve energy alone (:func:`curvefm.fmap.curves_alone_suffice`), as the
     ``combined`` method does."""
     if record.energy == "combined":
-        curves = [internal_paths(pair, curve) for curve in record.curves]
-        if curves_alone_suffice(pair.basis_M, pair.basis_N, curves):
+        ends = [(pair.mesh_M.internal_ids([c.path_source[0], c.path_source[-1]]),
+                 pair.mesh_N.internal_ids([c.path_target[0], c.path_target[-1]])) for c in record.curves]  # fmt: skip
+        if curves_alone_suffice(pair.basis_M, pair.basis_N, ends):  # only the curves' ends count
             return CurveMapSolver
     return SOLVERS[record.energy]
 
@@ -89,16 +89,15 @@ def build_solver(
     interactive: bool = False,
     executor: Executor | None = None,
     prior_executor: Executor | None = None,
-    prior_maps: Callable[..., FunctionalMaps] = landmark_maps,
     landmark_prior: bool = True,
 ) -> CurveMapSolver:
     """The session's solver (:func:`energy_solver`) with all its curves, under the same curve ids as in the record.
-    ``prior_executor`` and ``prior_maps``: where and how the combined energy computes its landmark prior (see
-    :class:`CombinedMapSolver`); ``landmark_prior=False``: the combined energy without it."""
+    ``prior_executor``: where the combined energy computes its landmark prior (see :class:`CombinedMapSolver`);
+    ``landmark_prior=False``: the combined energy without it."""
     solver_class = energy_solver(record, pair)
     background = {}
     if solver_class is CombinedMapSolver and landmark_prior:
-        background = {"prior_executor": prior_executor, "prior_maps": prior_maps}
+        background = {"prior_executor": prior_executor}
     elif solver_class is CombinedMapSolver:
         background = {"prior_weight": 0.0}
     solver = solver_class(
