@@ -87,7 +87,7 @@ every click) and from 89 to 130 ms (after 0.5 s without a new curve)."""
 NON_ISOMETRIC_DISTORTION = 0.25
 """A pair whose :func:`landmark_distortion` exceeds this counts as strongly non-isometric. Chosen by
 benchmarks/bench_isometry_rule.py on `curvefm reproduce`'s suite: with 10 curves TOSCA's horse -> cat measured
-0.36-0.40 and david -> gorilla 0.28-0.40, the pairs the descriptors help at most 0.23 (wolf -> dog 0.22-0.23, FAUST
+0.36-0.40 and david -> gorilla 0.27-0.40, the pairs the descriptors help at most 0.23 (wolf -> dog 0.22-0.23, FAUST
 0.02-0.22, cat -> lion 0.10-0.15, cat0 -> cat2 0.07-0.09). Chosen on the same runs it is judged on."""
 CURVES_ALONE_FROM = 10
 """From this many curves a strongly non-isometric pair is solved with the curve energy alone. With fewer, the curves
