@@ -1,5 +1,7 @@
 """The per-column systems of a map update (curvefm.fmap.column_solve) against a plain float64 reference."""
 
+import threading
+import time
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -149,6 +151,49 @@ def test_f2py_fallback_gives_the_same_solution(monkeypatch):
     monkeypatch.setattr(column_solve, "_DPOSV", None)
     slow_MN, _ = solve_both(G, G, B, lam_N, lam_M, 0.5)
     np.testing.assert_allclose(slow_MN, fast, rtol=0, atol=1e-13 * np.abs(fast).max())
+
+
+@pytest.mark.parametrize("layout", ["C", "F"])
+@pytest.mark.parametrize("fallback", [False, True])
+def test_solve_spd_matches_numpy_for_both_layouts_and_both_lapack_paths(layout, fallback, monkeypatch):
+    if fallback:
+        monkeypatch.setattr(column_solve, "_DPOSV", None)
+    rng = np.random.default_rng(3)
+    X = rng.standard_normal((40, 40))
+    H = X @ X.T + 0.1 * np.eye(40)
+    for b in (rng.standard_normal(40), rng.standard_normal((40, 3))):
+        x = column_solve.solve_spd(np.array(H, order=layout), b)
+        assert x.shape == b.shape
+        assert relative_error(x, np.linalg.solve(H, b)) < 1e-10
+    with pytest.raises(np.linalg.LinAlgError, match="not positive definite"):
+        column_solve.solve_spd(np.array(-H, order=layout), b)
+
+
+def test_solve_spd_leaves_the_interpreter_to_other_threads():
+    """NO17's solve runs in a background thread of the API (the landmark prior): while it factorises, the
+    threads answering requests must still run Python. A call that held the GIL would stop this loop for the
+    whole factorisation; here its longest pause must stay a small part of it."""
+    assert column_solve._DPOSV is not None, "this SciPy exports no GIL-free dposv: the prior would stall the API"
+    rng = np.random.default_rng(4)
+    X = rng.standard_normal((2000, 2000))
+    H = X @ X.T + np.eye(2000)
+    done = threading.Event()
+    took = []
+
+    def solve():
+        started = time.perf_counter()
+        column_solve.solve_spd(H, np.ones(2000))
+        took.append(time.perf_counter() - started)
+        done.set()
+
+    worker = threading.Thread(target=solve)
+    longest, last = 0.0, time.perf_counter()
+    worker.start()
+    while not done.is_set():
+        now = time.perf_counter()
+        longest, last = max(longest, now - last), now
+    worker.join()
+    assert longest < 0.2 * took[0]  # holding the GIL (the f2py wrapper) gave 0.4-0.5
 
 
 def test_bad_input_is_rejected():

@@ -19,6 +19,7 @@ from curvefm.fmap import (
     Hints,
     combined,
     landmark_maps,
+    landmark_prior,
     restrict,
 )
 from curvefm.fmap.combined import (
@@ -28,7 +29,7 @@ from curvefm.fmap.combined import (
     kernel_filters,
     signature_coefficients,
 )
-from curvefm.fmap.landmark_prior import NoLongerWanted
+from curvefm.fmap.landmark_prior import NO17Settings, NoLongerWanted, descriptor_part
 from curvefm.geometry import load_mesh, shortest_path
 from curvefm.matching import match
 from curvefm.session import (
@@ -41,6 +42,7 @@ from curvefm.session import (
     build_solver,
     load_pair,
 )
+from curvefm.spectral import normalised, wave_kernel_maps
 from curvefm.store import Store
 
 K = 12
@@ -180,6 +182,22 @@ def test_a_prior_no_longer_wanted_stops_at_its_next_step(shapes, paths):
     assert len(asked) == 2 * (1 + len(landmarks)) + 2  # a part per side for signatures and each landmark, 2 solves
     expected = landmark_maps(bM, bN, landmarks)
     assert np.array_equal(maps.C_MN, expected.C_MN) and np.array_equal(maps.C_NM, expected.C_NM)
+
+
+@pytest.mark.parametrize("k", [8, 12])
+def test_a_landmarks_part_from_the_eigenfunctions_operators_equals_the_part_of_its_kernel_maps(shapes, k):
+    """A landmark's part is made from the coefficients of its kernel maps and the eigenfunctions' operators; it
+    must equal the part computed from the kernel maps as functions on the vertices (k below the spectrum too)."""
+    _, bM, _, _ = shapes
+    settings = NO17Settings(k=k, spectrum=K, energies=6)
+    for landmark in (3, 500, 1100):
+        part = landmark_prior._part(bM, landmark, settings)
+        functions = normalised(bM, wave_kernel_maps(bM, np.array([landmark]), **settings.filters()))
+        expected = descriptor_part(bM, functions, k)
+        assert part.operators.shape == (6, k, k) and part.coefficients.shape == (k, 6)
+        for mine, theirs in ((part.coefficients, expected.coefficients), (part.operators, expected.operators)):
+            assert np.abs(theirs).max() > 0
+            np.testing.assert_allclose(mine, theirs, rtol=0, atol=1e-10 * np.abs(theirs).max())
 
 
 def test_incremental_edits_equal_a_fresh_solve(shapes, paths):

@@ -214,6 +214,28 @@ def _solve_rows(G: np.ndarray, ET: np.ndarray, BT: np.ndarray, CT: np.ndarray, r
         CT[j] = x
 
 
+def solve_spd(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``x`` with ``A x = b`` for a symmetric positive definite ``A`` (one triangle is read; ``A`` is overwritten
+    by its factor when it is a C- or Fortran-contiguous float64 array). Through the GIL-free ``dposv`` where
+    available: a background thread's large solve (NO17's 2500 x 2500 system at k = 50, 0.2 s) then leaves the
+    interpreter to the requests being answered meanwhile. Raises ``numpy.linalg.LinAlgError`` when ``A`` is not
+    positive definite."""
+    n = len(A)
+    if A.dtype != np.float64 or not (A.flags.c_contiguous or A.flags.f_contiguous):
+        A = np.array(A, dtype=np.float64, order="F")
+    x = np.array(b, dtype=np.float64, order="F").reshape(n, -1)
+    if _DPOSV is None:
+        _, x, info = lapack.dposv(A if A.flags.f_contiguous else A.T, x, lower=1)
+    else:
+        ints = np.array([n, x.shape[1], 0], dtype=np.intc)  # n (also lda, ldb), nrhs, info
+        p, size = ints.ctypes.data, ints.itemsize
+        _DPOSV(b"L", p, p + size, A.ctypes.data, p, x.ctypes.data, p, p + 2 * size)
+        info = int(ints[2])
+    if info != 0:
+        raise np.linalg.LinAlgError(f"dposv failed (info {info}): the matrix is not positive definite")
+    return x.reshape(np.shape(b))
+
+
 def _raise_if_failed(info: int, j: int) -> None:
     if info > 0:
         raise InternalError(

@@ -10,6 +10,7 @@ from curvefm.spectral.descriptors import (
     energy_filters,
     multiplication_operators,
     normalised,
+    wave_kernel_map_coefficients,
     wave_kernel_maps,
     wave_kernel_signature,
 )
@@ -47,6 +48,7 @@ __all__ = [
     "prolongation",
     "shifted_factor",
     "smallest_eigenpairs",
+    "wave_kernel_map_coefficients",
     "wave_kernel_maps",
     "wave_kernel_signature",
 ]

@@ -56,11 +56,20 @@ def wave_kernel_maps(
     basis: Basis, landmarks: np.ndarray, n_energies: int = 20, sigma: float = 0.06, *, margin: float = 0.0
 ) -> np.ndarray:
     """Wave kernel maps at each landmark, (n, len(landmarks) * n_energies), grouped by landmark."""
+    coefficients = wave_kernel_map_coefficients(basis, landmarks, n_energies, sigma, margin=margin)
+    return basis.evecs[:, 1:] @ coefficients[1:]
+
+
+def wave_kernel_map_coefficients(
+    basis: Basis, landmarks: np.ndarray, n_energies: int = 20, sigma: float = 0.06, *, margin: float = 0.0
+) -> np.ndarray:
+    """The wave kernel maps' coefficients in ``basis`` (k, len(landmarks) * n_energies): they lie in its span,
+    ``wave_kernel_maps == basis.evecs @ coefficients``; the constant eigenfunction's row is 0."""
     landmarks = np.asarray(landmarks, dtype=np.int64).reshape(-1)
     filters = _energy_filters(basis.evals, n_energies, sigma, margin)
     at_landmarks = basis.evecs[landmarks, 1:]  # (L, k-1)
     weights = at_landmarks[:, None, :] * filters[None, :, :]  # (L, E, k-1)
-    return basis.evecs[:, 1:] @ weights.reshape(-1, weights.shape[-1]).T
+    return np.vstack([np.zeros((1, len(landmarks) * n_energies)), weights.reshape(-1, weights.shape[-1]).T])
 
 
 def curve_function(vertices: np.ndarray, path: np.ndarray) -> np.ndarray:
