@@ -164,6 +164,37 @@ def test_an_edit_stops_a_running_prior_for_other_endpoints_before_the_maps_are_r
             assert asked_for == [2]  # the first curve's two endpoints; no job yet for the new ones
 
 
+def test_after_a_prior_gives_up_for_an_edit_the_current_endpoints_prior_still_lands(shapes, paths, monkeypatch):
+    """The job running when the edit came gives up; the maps read since were solved without a prior. The next
+    read that finds it given up must start the current endpoints' job, or the prior would stay pending (and the
+    page would poll for it) until the next edit."""
+    real_prior, running = combined.landmark_maps, threading.Event()
+
+    def prior_that_takes_a_while(basis_M, basis_N, landmarks, wanted=lambda: True):
+        running.set()
+        for _ in range(200):
+            if not wanted():
+                raise NoLongerWanted
+            time.sleep(0.005)
+        return real_prior(basis_M, basis_N, landmarks)
+
+    monkeypatch.setattr(combined, "landmark_maps", prior_that_takes_a_while)
+    monkeypatch.setattr(combined, "PRIOR_DELAY_S", 0.05)
+    with ThreadPoolExecutor(1) as background, solver_on(shapes) as at_once:
+        at_once.add_curves([(pm, pn, 1.0) for pm, pn in paths[:2]])
+        with solver_on(shapes, interactive=True, prior_executor=background) as live:
+            live.add_curves([(*paths[0], 1.0)])
+            live.C_MN  # noqa: B018  (starts the first curve's job)
+            assert running.wait(10)
+            live.add_curves([(*paths[1], 1.0)])
+            live.C_MN  # noqa: B018  (solved without a prior; the running job is for the old endpoints)
+            deadline = time.monotonic() + 30
+            while live.prior_pending and time.monotonic() < deadline:
+                time.sleep(0.02)  # reads, as the page's polls do
+            assert not live.prior_pending
+            assert np.allclose(live.C_MN, at_once.C_MN, rtol=0, atol=1e-12)
+
+
 def test_a_prior_no_longer_wanted_stops_at_its_next_step(shapes, paths):
     """The background prior gives up when newer endpoints are wanted: each descriptor part and each direction
     asks first, so a job stops after the step it was in, and its finished parts serve the next job."""

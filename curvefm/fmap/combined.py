@@ -266,8 +266,13 @@ class CombinedMapSolver(CurveMapSolver):
         landmarks, job = self._prior_job
         self._prior_job = None
         maps = _or_none(job.result)
-        if maps is SUPERSEDED or (self._prior is not None and self._prior[0] == self._landmarks()):
-            return  # the next read asks for the current endpoints' prior, if it is still missing
+        current = self._landmarks()
+        if self._prior is not None and self._prior[0] == current:
+            return
+        if maps is SUPERSEDED:  # the maps were solved without it already: no read would ask for the current one
+            if self.curves:
+                self._start_prior(current)
+            return
         self._prior = (landmarks, maps)
         self._stale = {"MN", "NM"} if self.curves else self._stale
 
