@@ -215,15 +215,17 @@ def test_a_prior_no_longer_wanted_stops_at_its_next_step(shapes, paths):
     assert np.array_equal(maps.C_MN, expected.C_MN) and np.array_equal(maps.C_NM, expected.C_NM)
 
 
-@pytest.mark.parametrize("k", [8, 12])
-def test_a_landmarks_part_from_the_eigenfunctions_operators_equals_the_part_of_its_kernel_maps(shapes, k):
+@pytest.mark.parametrize(("k", "spectrum"), [(8, K), (K, K), (6, 10)])
+def test_a_landmarks_part_from_the_eigenfunctions_operators_equals_the_part_of_its_kernel_maps(shapes, k, spectrum):
     """A landmark's part is made from the coefficients of its kernel maps and the eigenfunctions' operators; it
-    must equal the part computed from the kernel maps as functions on the vertices (k below the spectrum too)."""
+    must equal the part computed from the kernel maps as functions on the vertices (k below the spectrum, and a
+    spectrum below the basis, too)."""
     _, bM, _, _ = shapes
-    settings = NO17Settings(k=k, spectrum=K, energies=6)
+    settings = NO17Settings(k=k, spectrum=spectrum, energies=6)
     for landmark in (3, 500, 1100):
         part = landmark_prior._part(bM, landmark, settings)
-        functions = normalised(bM, wave_kernel_maps(bM, np.array([landmark]), **settings.filters()))
+        kernel_maps = wave_kernel_maps(bM.truncated(spectrum), np.array([landmark]), **settings.filters())
+        functions = normalised(bM, kernel_maps)
         expected = descriptor_part(bM, functions, k)
         assert part.operators.shape == (6, k, k) and part.coefficients.shape == (k, 6)
         for mine, theirs in ((part.coefficients, expected.coefficients), (part.operators, expected.operators)):

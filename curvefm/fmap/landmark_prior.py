@@ -144,13 +144,14 @@ def _part(basis: Basis, landmark: int | None, settings: NO17Settings) -> Descrip
     their coefficients and norms follow from the eigenfunctions' Gram matrix: no pass over the vertices per
     landmark (at 28k vertices a part cost 0.16 s of a core that way, and costs 10 ms this way; the operators agree
     to 1e-15)."""
-    spectral = basis.truncated(min(settings.spectrum, basis.k))
+    spectrum = min(settings.spectrum, basis.k)
     if landmark is None:
-        functions = normalised(basis, wave_kernel_signature(spectral, **settings.filters()))
+        functions = normalised(basis, wave_kernel_signature(basis.truncated(spectrum), **settings.filters()))
         return descriptor_part(basis, functions, settings.k)
-    coefficients = wave_kernel_map_coefficients(spectral, np.array([landmark]), **settings.filters())
+    leading = Basis(basis.evals[:spectrum], basis.evecs[:, :spectrum], basis.mass)  # a view: one row is read
+    coefficients = wave_kernel_map_coefficients(leading, np.array([landmark]), **settings.filters())
     operators, gram = _EIGEN_PRODUCTS.get(
-        (basis_digest(basis), spectral.k, settings.k), lambda: _eigen_products(spectral, settings.k)
+        (basis_digest(basis), spectrum, settings.k), lambda: _eigen_products(basis.truncated(spectrum), settings.k)
     )
     coefficients = coefficients / np.sqrt(np.maximum(np.sum(coefficients * (gram @ coefficients), axis=0), 1e-300))
     return DescriptorPart(gram[: settings.k] @ coefficients, np.tensordot(coefficients, operators, axes=(0, 0)))
