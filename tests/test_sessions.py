@@ -2,6 +2,7 @@
 
 import json
 import threading
+import time
 from array import array
 
 import numpy as np
@@ -86,6 +87,33 @@ def test_every_edit_is_on_disk_with_the_next_revision_before_it_returns(store):
     assert restarted.add_curve(session.id, curve(0))[0].id == "c5"
     assert restarted.records.read(session.id).revision == 7
     restarted.live.close()
+
+
+@pytest.mark.parametrize("energy", ["curves", "combined"])
+def test_the_map_an_edit_changes_is_solved_in_the_background_before_it_is_read(store, energy):
+    """Every edit leaves the texture's map (C_MN) solving on a background thread, so the read that follows finds it
+    solved; the reverse map waits for a read that needs it."""
+    editor = editor_on(store)
+    session = new_session(editor, store, energy=energy)
+    edits = [
+        lambda: editor.add_curve(session.id, curve(0)),
+        lambda: editor.add_curve(session.id, curve(1)),
+        lambda: editor.replace_curve(session.id, "c1", curve(2)),
+        lambda: editor.remove_curve(session.id, "c2"),
+    ]
+    for edit in edits:
+        edit()
+        live, deadline = editor.live.peek(session.id), time.monotonic() + 10
+        while "MN" in (pending := _pending(editor, session.id, live)) and time.monotonic() < deadline:
+            time.sleep(0.005)
+        assert pending == {"NM"}
+        assert editor.transfer(session.id, "uv").solve_ms == 0.0  # a prior lands a second after an edit at the soonest
+    editor.live.close()
+
+
+def _pending(editor, session_id, live):
+    with editor.live.locked(session_id):
+        return live.solver.pending
 
 
 def test_the_live_cache_is_bounded_and_rebuilds_evicted_sessions_from_disk(store):

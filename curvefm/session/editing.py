@@ -260,14 +260,16 @@ class SessionEditor:
         self.limits.check("max_curves", count, f"{count} curves in session {record.id}")
 
     def _commit(self, live: LiveSession, **changes) -> None:
-        """Write the edited record, then make it the live one. If writing fails the solver already holds the
-        edit, so the live session is dropped and rebuilt from disk on next use."""
+        """Write the edited record, then make it the live one, and have the new map solved in the background (the
+        texture's read, which follows every edit, then finds it solved or on its way). If writing fails the
+        solver already holds the edit, so the live session is dropped and rebuilt from disk on next use."""
         try:
             live.record = self.records.write(live.record.model_copy(update=changes))
         except BaseException:
             self.live.drop(live.record.id)
             raise
         self.live.fit_energy(live)
+        self.live.solve_soon(live.record.id)
 
 
 def source_function(
