@@ -84,7 +84,7 @@ class LiveSessions:
         records: SessionStore,
         size: int = 32,
         display_vertices: int = 0,
-        prior_max_vertices: int = 50_000,
+        prior_max_vertices: int = 150_000,
     ):
         self.store, self.records = store, records
         self.display_vertices, self.prior_max_vertices = display_vertices, prior_max_vertices
