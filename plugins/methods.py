@@ -88,7 +88,8 @@ class CombinedParams(CurvesParams):
         ge=0,
         description="from 10 curves until full_size_curves, a pair whose curve "
         "endpoints' biharmonic distances differ by more than this (median |log ratio|, shapes scaled to unit area) "
-        "is solved with the curve energy alone: the descriptors and the prior assume a near-isometry",
+        "is solved with the curve energy alone: the descriptors and the prior assume a near-isometry; from "
+        "full_size_curves on, its map's entries outside the prior's block are halved",
     )
 
 
@@ -103,7 +104,7 @@ def run_combined(
                             params.non_isometric_distortion):  # fmt: skip
         curve_energy = CurvesParams(alpha=params.alpha, samples=params.samples)  # the descriptors would mislead
         return _solve_curves(CurveMapSolver, pair, hints, curve_energy.model_dump(), progress)
-    energy = params.model_dump(exclude={"non_isometric_distortion"})
+    energy = params.model_dump()
     return _solve_curves(CombinedMapSolver, pair, hints, energy, progress)
 
 

@@ -18,7 +18,7 @@ from curvefm.fmap import (
     curves_alone_suffice,
     landmark_distortion,
 )
-from curvefm.fmap.combined import CURVES_ALONE_FROM, biharmonic_distances
+from curvefm.fmap.combined import CURVES_ALONE_FROM, HIGH_FREQUENCY_DAMPING, biharmonic_distances
 from curvefm.geometry import load_mesh, shortest_path
 from curvefm.progress import no_progress
 from curvefm.session import CurveSpec, LiveSessions, SessionCreate, SessionEditor, SessionStore
@@ -90,6 +90,25 @@ def test_the_combined_method_solves_the_curve_energy_alone_on_a_strongly_non_iso
     np.testing.assert_allclose(combined.C_MN, alone.C_MN, atol=1e-12)
     kept = maps_of(stretched_pair, "combined", curves, non_isometric_distortion=10.0)  # the rule off
     assert np.abs(kept.C_NM - alone.C_NM[: len(kept.C_NM), : len(kept.C_NM)]).max() > 1e-3
+
+
+def test_from_full_size_a_strongly_non_isometric_pairs_map_has_its_high_frequencies_halved():
+    """Handed out whole (from FULL_SIZE_CURVES curves), the map keeps the prior's 50 x 50 block and halves the rest
+    where the endpoints show the pair strongly non-isometric; a near-isometric pair's map stays as solved."""
+    k = 60  # above the prior's block
+    for radii, strong in ((STRONG_STRETCH, True), (MILD_STRETCH, False)):
+        M, N = ellipsoid(), ellipsoid(radii=radii)
+        pair = ShapePair(M, N, basis_of(M, k), basis_of(N, k))
+        curves = curves_between(M, N, FULL_SIZE_CURVES)
+        handed_out = maps_of(pair, "combined", curves)
+        solved = maps_of(pair, "combined", curves, non_isometric_distortion=10.0)  # the rule off
+        outside = np.ones((k, k), dtype=bool)
+        outside[:50, :50] = False
+        for mine, whole in ((handed_out.C_NM, solved.C_NM), (handed_out.C_MN, solved.C_MN)):
+            assert mine.shape == (k, k) and np.abs(whole[outside]).max() > 1e-3
+            np.testing.assert_allclose(mine[~outside], whole[~outside], rtol=0, atol=1e-12)
+            factor = HIGH_FREQUENCY_DAMPING if strong else 1.0
+            np.testing.assert_allclose(mine[outside], factor * whole[outside], rtol=0, atol=1e-12)
 
 
 def test_a_session_switches_energy_as_its_curves_cross_the_rule_and_back(tmp_path, bases, stretched_pair):

@@ -43,7 +43,8 @@ is the better map. The only measure of isometry a user's input gives is the curv
 :func:`landmark_distortion` compares their biharmonic distances on both shapes (from the bases, so it costs
 microseconds per edit), and above ``NON_ISOMETRIC_DISTORTION`` the combined energy gives way to the curve energy
 alone (:func:`curves_alone_suffice`, applied by the ``combined`` method and by a session's solver;
-benchmarks/bench_isometry_rule.py).
+benchmarks/bench_isometry_rule.py). From ``FULL_SIZE_CURVES`` on, such a pair's map is handed out whole but with its
+frequencies beyond the prior's block scaled by ``HIGH_FREQUENCY_DAMPING`` (benchmarks/bench_high_frequency_damping.py).
 """
 
 from __future__ import annotations
@@ -94,6 +95,13 @@ CURVES_ALONE_FROM = 10
 do not determine the map and the descriptors still help (TOSCA's david -> gorilla with 5 curves: combined 0.043,
 curves 0.058); from ``FULL_SIZE_CURVES`` on the combined map, handed out whole, is better again (across classes
 with 20 curves: the curve energy won 1 of the 6 runs above the threshold)."""
+HIGH_FREQUENCY_DAMPING = 0.5
+"""From ``FULL_SIZE_CURVES`` curves on, a strongly non-isometric pair's map is handed out whole but with every entry
+outside the prior's 50 x 50 block multiplied by this: the curves determine those frequencies less well where the
+descriptors and the prior mislead. benchmarks/bench_high_frequency_damping.py with 20 curves: horse -> cat and
+david -> gorilla (distortion 0.29-0.39) 0.0244 -> 0.0225 on average (0.25: 0.0232; cut off at 50 x 50: 0.0290);
+wolf -> dog (0.21-0.23) would gain too, but FAUST's pairs measure up to 0.22 and lose with any damping (0.0100 ->
+0.0112 at 0.5), and so does TOSCA within classes."""
 SUPERSEDED = object()  # what a prior job returns when newer endpoints were asked for while it waited
 ENERGIES = 20
 SIGMA = 0.06
@@ -190,13 +198,14 @@ class CombinedMapSolver(CurveMapSolver):
         kernel_points: int = KERNEL_POINTS,
         prior_weight: float = DEFAULT_PRIOR_WEIGHT,
         full_size_curves: int = FULL_SIZE_CURVES,
+        non_isometric_distortion: float = NON_ISOMETRIC_DISTORTION,
         prior_executor: Executor | None = None,
         **kwargs,
     ):
         super().__init__(*args, alpha=alpha, **kwargs)
         self.descriptor_weight, self.kernel_weight = float(descriptor_weight), float(kernel_weight)
         self.kernel_points, self.prior_weight = kernel_points, float(prior_weight)
-        self.full_size_curves = full_size_curves
+        self.full_size_curves, self.non_isometric_distortion = full_size_curves, float(non_isometric_distortion)
         self._signatures = self.descriptor_weight * signature_products(self.basis_M, self.basis_N)
         self._filters_M, self._filters_N = kernel_filters(self.basis_M.evals), kernel_filters(self.basis_N.evals)
         self._prior_executor = prior_executor
@@ -316,10 +325,16 @@ class CombinedMapSolver(CurveMapSolver):
             return SUPERSEDED
 
     def _sized(self, C: np.ndarray) -> np.ndarray:
-        if self.prior_weight <= 0 or len(self.curves) >= self.full_size_curves:
+        if self.prior_weight <= 0:
             return C
         size = min(NO17Settings().k, self.k)
-        return C[:size, :size].copy()
+        if len(self.curves) < self.full_size_curves:
+            return C[:size, :size].copy()
+        if landmark_distortion(self.basis_M, self.basis_N, _pairs(self._landmarks())) <= self.non_isometric_distortion:
+            return C
+        damped = C * HIGH_FREQUENCY_DAMPING
+        damped[:size, :size] = C[:size, :size]
+        return damped
 
 
 def _pairs(landmarks: frozenset) -> np.ndarray:

@@ -1,0 +1,73 @@
+"""With 20 curves, should the combined map's coefficients beyond the prior's 50 x 50 block be shrunk rather than kept
+whole (the default) or cut off (the size below 20 curves)?
+
+On ``curvefm reproduce``'s full suite (its pairs with 20 curves, ``CurvePool`` traced curves, 3 seeds and scorer:
+mean error by geodesic diameter of the map ``C_NM`` converted by nearest neighbours), the combined map solved at
+k = 120 and handed out with every entry outside the leading 50 x 50 block multiplied by ``gamma``: 0 keeps the
+block alone, 1 is the default. Prints one JSON object: per dataset the mean over its runs for each ``gamma``, and
+every run. Deterministic, so a busy machine does not change it.
+
+    nice python benchmarks/bench_high_frequency_damping.py [--gammas 0 0.25 0.5 0.75 1]
+"""
+
+import argparse
+import json
+import math
+
+import numpy as np
+from common import machine, shared_data
+
+from curvefm import registry
+from curvefm.evaluation.reproduce.datasets import FULL_PAIRS
+from curvefm.evaluation.reproduce.scoring import LoadedPair
+from curvefm.fmap import DEFAULT_K, CombinedMapSolver, Hints, landmark_distortion
+from curvefm.runtime import limit_blas_threads
+from curvefm.store import Store
+
+CURVES = 20
+UNDAMPED = math.inf  # no pair counts as strongly non-isometric: the map is handed out as solved
+SEEDS = 3
+BLOCK = 50
+
+
+def run(loaded: LoadedPair, seed: int, gammas: list[float]) -> dict:
+    shapes = loaded.shapes
+    curves = loaded.pool.curves(CURVES, seed, False)
+    _, params = registry.load("method", "combined", {})
+    energy = params.model_dump() | {"full_size_curves": 1, "non_isometric_distortion": UNDAMPED}
+    k = min(shapes.basis_M.k, shapes.basis_N.k)
+    with CombinedMapSolver(shapes.mesh_M.vertices, shapes.basis_M, shapes.mesh_N.vertices, shapes.basis_N, k=k,
+                           **energy) as solver:  # fmt: skip
+        solver.add_curves([(pm, pn, 1.0) for pm, pn in curves])
+        C_NM = solver.C_NM
+    errors = {}
+    for gamma in gammas:
+        weights = np.full(C_NM.shape, gamma)
+        weights[:BLOCK, :BLOCK] = 1.0
+        errors[str(gamma)] = round(loaded.scorer(C_NM * weights, shapes.basis_M, shapes.basis_N).mean, 6)
+    distortion = landmark_distortion(shapes.basis_M, shapes.basis_N, Hints.from_curves(curves).landmarks)
+    return {"dataset": loaded.pair.dataset, "pair": loaded.pair.name, "seed": seed,
+            "landmark_distortion": round(float(distortion), 4), "errors": errors}  # fmt: skip
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--gammas", type=float, nargs="+", default=[0.0, 0.25, 0.5, 0.75, 1.0])
+    args = parser.parse_args()
+    limit_blas_threads()
+    data, store, rows = shared_data(), Store(), []
+    for pair in FULL_PAIRS:
+        loaded = LoadedPair.load(data, pair, DEFAULT_K, store)
+        if loaded.pool.max_curves >= CURVES:
+            rows.extend(run(loaded, seed, args.gammas) for seed in range(SEEDS))
+    datasets = {}
+    for row in rows:
+        datasets.setdefault(row["dataset"], []).append(row["errors"])
+    means = {name: {g: round(float(np.mean([r[g] for r in runs])), 5) for g in runs[0]} for name, runs in
+             datasets.items()}  # fmt: skip
+    print(json.dumps({"benchmark": "high_frequency_damping", "machine": machine(), "k": DEFAULT_K, "curves": CURVES,
+                      "block": BLOCK, "means": means, "rows": rows}))  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
