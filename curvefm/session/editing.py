@@ -187,6 +187,7 @@ class SessionEditor:
         with self.live.using(session_id) as live:
             # pending first: a prior landing between the two reads then costs the client one more read, not the map
             prior_pending, solving = live.solver.prior_pending, "MN" in live.solver.pending
+            live.watched = True
             C_MN, revision = live.solver.C_MN, live.record.revision
             solve_ms = live.solver.last_solve_ms if solving else 0.0
         spread = self.live.display(live.record.source, "source") if display and function == "indicator" else None
@@ -260,8 +261,9 @@ class SessionEditor:
         self.limits.check("max_curves", count, f"{count} curves in session {record.id}")
 
     def _commit(self, live: LiveSession, **changes) -> None:
-        """Write the edited record, then make it the live one, and have the new map solved in the background (the
-        texture's read, which follows every edit, then finds it solved or on its way). If writing fails the
+        """Write the edited record, then make it the live one; when its texture was read since the last edit (the
+        web UI reads it after each), have the new map solved in the background, so the next read finds it solved
+        or on its way (a script that only edits leaves the solves to its reads, if any). If writing fails the
         solver already holds the edit, so the live session is dropped and rebuilt from disk on next use."""
         try:
             live.record = self.records.write(live.record.model_copy(update=changes))
@@ -269,7 +271,9 @@ class SessionEditor:
             self.live.drop(live.record.id)
             raise
         self.live.fit_energy(live)
-        self.live.solve_soon(live.record.id)
+        if live.watched:
+            live.watched = False
+            self.live.solve_soon(live.record.id)
 
 
 def source_function(

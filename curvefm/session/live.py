@@ -65,6 +65,8 @@ class LiveSession:
     solver: CurveMapSolver
     transfers: LRU[FunctionTransfer]  # by (function, vertices, spread): the function on M projected on M's basis
     display_rows: LRU  # by display copy key: float32 rows of N's basis at the target's display vertices
+    # someone reads its texture between edits (the web UI, after each): its next edit's map is solved at once
+    watched: bool = False
 
     @cached_property
     def round_trip(self) -> RoundTripQuality:
