@@ -219,7 +219,8 @@ class LiveSessions:
     def _solver(self, record: SessionRecord, pair: ShapePair) -> CurveMapSolver:
         # an edit solves only the map the texture needs, on one thread: with the cores shared (other sessions,
         # or the browser in bench_ui_latency) that took the solve from 11-13 to 8 ms
-        # the landmark prior costs seconds of a core per edit on big meshes (its descriptors are O(n) each)
+        # the landmark prior's descriptor operators cost a pass over every vertex once per shape (1.4 s at 110k),
+        # so shapes above prior_max_vertices go without it
         small = max(mesh.n_vertices for mesh in pair.meshes) <= self.prior_max_vertices
         return build_solver(
             record, pair, interactive=True, executor=self._executor,
