@@ -39,7 +39,7 @@ def errors_for(pair, truth, curves, converter) -> dict:
         solver.add_curves(terms)
         row["curves"] = error(FunctionalMaps(solver.C_MN, solver.C_NM))
     for weight in PRIOR_WEIGHTS:
-        whole = {"full_size_curves": 1, "non_isometric_distortion": math.inf}  # 120 x 120 as solved
+        whole = {"full_size_curves": 1, "non_isometric_spectra": math.inf}  # 120 x 120 as solved
         with CombinedMapSolver(*bases, prior_weight=weight, **whole) as solver:
             solver.add_curves(terms)
             C_MN, C_NM = solver.C_MN, solver.C_NM

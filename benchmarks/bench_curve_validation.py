@@ -49,7 +49,7 @@ from curvefm.runtime import limit_blas_threads
 from curvefm.store import Store
 
 NEVER = 10**6
-AS_SOLVED = {"non_isometric_distortion": math.inf}  # no high frequencies damped on any pair
+AS_SOLVED = {"non_isometric_spectra": math.inf}  # no high frequencies damped on any pair
 CANDIDATES = {  # name -> (solver class, keyword arguments); "no17" is the prior itself
     "c30-50": (CombinedMapSolver, {"prior_weight": 30.0, "full_size_curves": NEVER}),
     "c30-120": (CombinedMapSolver, {"prior_weight": 30.0, "full_size_curves": 1, **AS_SOLVED}),

@@ -52,7 +52,7 @@ from curvefm.store import Store
 
 SEEDS = 3
 SIZES = (50, 70, 120)
-OFF = {"non_isometric_distortion": 1e9}
+OFF = {"non_isometric_distortion": 1e9, "non_isometric_spectra": 1e9}  # neither rule: the default before them
 METHODS = {
     "before": ("combined", OFF),
     "after": ("combined", {}),

@@ -162,7 +162,7 @@ def run(loaded: LoadedPair, count: int, seed: int, sizes, fold_counts, honest: b
     row["default"] = loaded.scorer(default.C_NM, shapes.basis_M, shapes.basis_N).mean
     row["default_size"] = int(default.C_NM.shape[0])
     row["curves_alone"] = bool(curves_alone_suffice(shapes.basis_M, shapes.basis_N, curves))
-    energy = params.model_dump() | {"full_size_curves": 1, "non_isometric_distortion": math.inf}  # as solved
+    energy = params.solver_params() | {"full_size_curves": 1, "non_isometric_spectra": math.inf}  # as solved
     k = min(shapes.basis_M.k, shapes.basis_N.k)
     with CombinedMapSolver(shapes.mesh_M.vertices, shapes.basis_M, shapes.mesh_N.vertices, shapes.basis_N, k=k,
                            **energy) as solver:  # fmt: skip

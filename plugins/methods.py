@@ -30,6 +30,7 @@ from curvefm.fmap import (
     FULL_SIZE_CURVES,
     KERNEL_POINTS,
     NON_ISOMETRIC_DISTORTION,
+    NON_ISOMETRIC_SPECTRA,
     CombinedMapSolver,
     CurveMapSolver,
     FunctionalMaps,
@@ -88,9 +89,20 @@ class CombinedParams(CurvesParams):
         ge=0,
         description="from 10 curves until full_size_curves, a pair whose curve "
         "endpoints' biharmonic distances differ by more than this (median |log ratio|, shapes scaled to unit area) "
-        "is solved with the curve energy alone: the descriptors and the prior assume a near-isometry; from "
-        "full_size_curves on, its map's entries outside the prior's block are halved",
+        "is solved with the curve energy alone: the descriptors and the prior assume a near-isometry",
     )
+    non_isometric_spectra: float = Field(
+        NON_ISOMETRIC_SPECTRA,
+        ge=0,
+        description="from full_size_curves curves on, a pair whose Laplace-Beltrami "
+        "spectra differ by more than this (mean |log ratio| of the eigenvalues, shapes scaled to unit area) has its "
+        "map's entries outside the prior's block damped: the curves determine those frequencies less well where the "
+        "shapes are far from isometric",
+    )
+
+    def solver_params(self) -> dict:
+        """The keyword arguments of :class:`CombinedMapSolver`: all but the rule :func:`run_combined` applies."""
+        return self.model_dump(exclude={"non_isometric_distortion"})
 
 
 def run_curves(pair: ShapePair, hints: Hints, params: CurvesParams, progress: Progress = no_progress) -> FunctionalMaps:
@@ -104,8 +116,7 @@ def run_combined(
                             params.non_isometric_distortion):  # fmt: skip
         curve_energy = CurvesParams(alpha=params.alpha, samples=params.samples)  # the descriptors would mislead
         return _solve_curves(CurveMapSolver, pair, hints, curve_energy.model_dump(), progress)
-    energy = params.model_dump()
-    return _solve_curves(CombinedMapSolver, pair, hints, energy, progress)
+    return _solve_curves(CombinedMapSolver, pair, hints, params.solver_params(), progress)
 
 
 def _solve_curves(

@@ -1,6 +1,7 @@
-"""The combined energy's rule for strongly non-isometric pairs: the landmark distortion measured from the curves'
-endpoints, and the curve energy alone from ``CURVES_ALONE_FROM`` curves (until the map is handed out whole) where it
-exceeds the threshold, in the ``combined`` method and in a session's solvers alike."""
+"""The combined energy's rules for non-isometric pairs: the landmark distortion measured from the curves' endpoints,
+and the curve energy alone from ``CURVES_ALONE_FROM`` curves (until the map is handed out whole) where it exceeds
+its threshold, in the ``combined`` method and in a session's solvers alike; and from full size on, the high
+frequencies damped where the spectra differ."""
 
 import numpy as np
 import pytest
@@ -12,11 +13,13 @@ from curvefm.evaluation.protocol import CurvePool
 from curvefm.fmap import (
     FULL_SIZE_CURVES,
     NON_ISOMETRIC_DISTORTION,
+    NON_ISOMETRIC_SPECTRA,
     CombinedMapSolver,
     CurveMapSolver,
     Hints,
     curves_alone_suffice,
     landmark_distortion,
+    spectral_mismatch,
 )
 from curvefm.fmap.combined import CURVES_ALONE_FROM, HIGH_FREQUENCY_DAMPING, biharmonic_distances
 from curvefm.geometry import load_mesh, shortest_path
@@ -56,6 +59,15 @@ def test_the_landmark_distortion_ignores_scale_and_grows_with_stretch(bases):
     assert landmark_distortion(bases["M"], bases["strong"], same[:1]) == 0.0  # no pair of landmarks: nothing measured
 
 
+def test_the_spectral_mismatch_ignores_scale_and_grows_with_stretch(bases):
+    assert spectral_mismatch(bases["M"], bases["M"]) == 0.0
+    assert spectral_mismatch(bases["M"], bases["scaled"]) < 1e-6  # the bases are of the shapes at unit area
+    mild, strong = (spectral_mismatch(bases["M"], bases[name]) for name in ("mild", "strong"))
+    assert 0.01 < mild < strong
+    assert spectral_mismatch(bases["M"].truncated(10), bases["strong"]) == spectral_mismatch(
+        bases["M"].truncated(10), bases["strong"].truncated(10))  # only the eigenpairs both hold
+
+
 def test_biharmonic_distances_are_those_of_the_spectral_embedding(bases):
     basis, vertices = bases["M"], LANDMARKS[:5]
     embedded = basis.evecs[vertices, 1:] / basis.evals[1:]
@@ -92,22 +104,23 @@ def test_the_combined_method_solves_the_curve_energy_alone_on_a_strongly_non_iso
     assert np.abs(kept.C_NM - alone.C_NM[: len(kept.C_NM), : len(kept.C_NM)]).max() > 1e-3
 
 
-def test_from_full_size_a_strongly_non_isometric_pairs_map_has_its_high_frequencies_halved():
-    """Handed out whole (from FULL_SIZE_CURVES curves), the map keeps the prior's 50 x 50 block and halves the rest
-    where the endpoints show the pair strongly non-isometric; a near-isometric pair's map stays as solved."""
+def test_from_full_size_a_non_isometric_pairs_map_has_its_high_frequencies_damped():
+    """Handed out whole (from FULL_SIZE_CURVES curves), the map keeps the prior's 50 x 50 block and damps the rest
+    where the spectra show the pair non-isometric; an isometric pair's map stays as solved."""
     k = 60  # above the prior's block
-    for radii, strong in ((STRONG_STRETCH, True), (MILD_STRETCH, False)):
-        M, N = ellipsoid(), ellipsoid(radii=radii)
+    for N, damped in ((ellipsoid(radii=STRONG_STRETCH), True), (ellipsoid(scale=3.0), False)):
+        M = ellipsoid()
         pair = ShapePair(M, N, basis_of(M, k), basis_of(N, k))
+        assert (spectral_mismatch(pair.basis_M, pair.basis_N) > NON_ISOMETRIC_SPECTRA) == damped
         curves = curves_between(M, N, FULL_SIZE_CURVES)
         handed_out = maps_of(pair, "combined", curves)
-        solved = maps_of(pair, "combined", curves, non_isometric_distortion=10.0)  # the rule off
+        solved = maps_of(pair, "combined", curves, non_isometric_spectra=10.0)  # the rule off
         outside = np.ones((k, k), dtype=bool)
         outside[:50, :50] = False
         for mine, whole in ((handed_out.C_NM, solved.C_NM), (handed_out.C_MN, solved.C_MN)):
             assert mine.shape == (k, k) and np.abs(whole[outside]).max() > 1e-3
             np.testing.assert_allclose(mine[~outside], whole[~outside], rtol=0, atol=1e-12)
-            factor = HIGH_FREQUENCY_DAMPING if strong else 1.0
+            factor = HIGH_FREQUENCY_DAMPING if damped else 1.0
             np.testing.assert_allclose(mine[outside], factor * whole[outside], rtol=0, atol=1e-12)
 
 

@@ -31,9 +31,11 @@ from curvefm.fmap.combined import (
     FULL_SIZE_CURVES,
     KERNEL_POINTS,
     NON_ISOMETRIC_DISTORTION,
+    NON_ISOMETRIC_SPECTRA,
     CombinedMapSolver,
     curves_alone_suffice,
     landmark_distortion,
+    spectral_mismatch,
 )
 from curvefm.fmap.landmark_prior import NO17Settings, descriptor_functions, descriptor_part, landmark_maps, no17_maps
 from curvefm.fmap.maps import FunctionalMaps, Hints, curve_endpoints
@@ -63,6 +65,7 @@ __all__ = [
     "KERNEL_POINTS",
     "NO17Settings",
     "NON_ISOMETRIC_DISTORTION",
+    "NON_ISOMETRIC_SPECTRA",
     "PARALLEL_MIN_SIZE",
     "Prior",
     "RIDGE",
@@ -90,5 +93,6 @@ __all__ = [
     "restriction_operator",
     "solve_both",
     "solve_columns",
+    "spectral_mismatch",
     "transfer",
 ]

@@ -43,8 +43,10 @@ is the better map. The only measure of isometry a user's input gives is the curv
 :func:`landmark_distortion` compares their biharmonic distances on both shapes (from the bases, so it costs
 microseconds per edit), and above ``NON_ISOMETRIC_DISTORTION`` the combined energy gives way to the curve energy
 alone (:func:`curves_alone_suffice`, applied by the ``combined`` method and by a session's solver;
-benchmarks/bench_isometry_rule.py). From ``FULL_SIZE_CURVES`` on, such a pair's map is handed out whole but with its
-frequencies beyond the prior's block scaled by ``HIGH_FREQUENCY_DAMPING`` (benchmarks/bench_high_frequency_damping.py).
+benchmarks/bench_isometry_rule.py). From ``FULL_SIZE_CURVES`` on, the map is handed out whole, and where the two
+shapes' spectra differ by more than ``NON_ISOMETRIC_SPECTRA`` (:func:`spectral_mismatch`: isometric shapes are
+isospectral) its frequencies beyond the prior's block are scaled by ``HIGH_FREQUENCY_DAMPING``
+(benchmarks/bench_high_frequency_damping.py).
 """
 
 from __future__ import annotations
@@ -95,13 +97,20 @@ CURVES_ALONE_FROM = 10
 do not determine the map and the descriptors still help (TOSCA's david -> gorilla with 5 curves: combined 0.043,
 curves 0.058); from ``FULL_SIZE_CURVES`` on the combined map, handed out whole, is better again (across classes
 with 20 curves: the curve energy won 1 of the 6 runs above the threshold)."""
-HIGH_FREQUENCY_DAMPING = 0.5
-"""From ``FULL_SIZE_CURVES`` curves on, a strongly non-isometric pair's map is handed out whole but with every entry
-outside the prior's 50 x 50 block multiplied by this: the curves determine those frequencies less well where the
-descriptors and the prior mislead. benchmarks/bench_high_frequency_damping.py with 20 curves: horse -> cat and
-david -> gorilla (distortion 0.29-0.39) 0.0244 -> 0.0225 on average (0.25: 0.0232; cut off at 50 x 50: 0.0290);
-wolf -> dog (0.21-0.23) would gain too, but FAUST's pairs measure up to 0.22 and lose with any damping (0.0100 ->
-0.0112 at 0.5), and so does TOSCA within classes."""
+NON_ISOMETRIC_SPECTRA = 0.05
+"""From ``FULL_SIZE_CURVES`` curves on, a pair whose :func:`spectral_mismatch` exceeds this has its map's high
+frequencies damped. benchmarks/bench_high_frequency_damping.py: on the reproduce suite FAUST and TOSCA within classes
+measure 0.009-0.042, cat -> lion and TOSCA across classes 0.056-0.092; on twelve pairs outside the suite, FAUST and
+TOSCA within classes 0.010-0.039, across classes cat -> dog, horse -> wolf and michael -> gorilla 0.053-0.069, but
+dog -> horse 0.041 and victoria -> david 0.021 (damping would have helped those too). The endpoints' landmark
+distortion separates less well: FAUST's pairs measure up to 0.22, cat -> lion 0.12-0.14 and wolf -> dog 0.21-0.23."""
+HIGH_FREQUENCY_DAMPING = 0.25
+"""From ``FULL_SIZE_CURVES`` curves on, a pair above ``NON_ISOMETRIC_SPECTRA`` has its map handed out whole but with
+every entry outside the prior's 50 x 50 block multiplied by this: the curves determine those frequencies less well
+where the descriptors and the prior mislead. benchmarks/bench_high_frequency_damping.py with 20 curves, mean error of
+the runs above the threshold: on the suite 0.0225 -> 0.0203 (0.5: 0.0202; cut off at 50 x 50: 0.0241), on the pairs
+outside it 0.0248 -> 0.0194 (0.5: 0.0223, one run of michael -> gorilla 0.048 against 0.022); FAUST and TOSCA within
+classes lose with any damping (FAUST 0.0100 -> 0.0116 at 0.25)."""
 SUPERSEDED = object()  # what a prior job returns when newer endpoints were asked for while it waited
 ENERGIES = 20
 SIGMA = 0.06
@@ -156,6 +165,16 @@ def landmark_distortion(basis_M: Basis, basis_N: Basis, landmarks: np.ndarray) -
     return float(np.median(np.abs(ratios))) if len(ratios) else 0.0
 
 
+def spectral_mismatch(basis_M: Basis, basis_N: Basis) -> float:
+    """How far from an isometry the pair's Laplace-Beltrami spectra say it is, with no landmarks: the mean over
+    the non-constant eigenpairs both bases hold of ``|log(lam_i^N / lam_i^M)|`` (isometric shapes are
+    isospectral; the bases are of the shapes scaled to unit area)."""
+    k = min(basis_M.k, basis_N.k)
+    lam_M, lam_N = basis_M.evals[1:k], basis_N.evals[1:k]
+    positive = (lam_M > 0) & (lam_N > 0)
+    return float(np.mean(np.abs(np.log(lam_N[positive] / lam_M[positive])))) if positive.any() else 0.0
+
+
 def biharmonic_distances(basis: Basis, vertices: np.ndarray) -> np.ndarray:
     """Biharmonic distances between ``vertices``: ``sqrt(sum_i (phi_i(a) - phi_i(b))^2 / lam_i^2)`` over the basis
     without its constant function."""
@@ -198,14 +217,15 @@ class CombinedMapSolver(CurveMapSolver):
         kernel_points: int = KERNEL_POINTS,
         prior_weight: float = DEFAULT_PRIOR_WEIGHT,
         full_size_curves: int = FULL_SIZE_CURVES,
-        non_isometric_distortion: float = NON_ISOMETRIC_DISTORTION,
+        non_isometric_spectra: float = NON_ISOMETRIC_SPECTRA,
         prior_executor: Executor | None = None,
         **kwargs,
     ):
         super().__init__(*args, alpha=alpha, **kwargs)
         self.descriptor_weight, self.kernel_weight = float(descriptor_weight), float(kernel_weight)
         self.kernel_points, self.prior_weight = kernel_points, float(prior_weight)
-        self.full_size_curves, self.non_isometric_distortion = full_size_curves, float(non_isometric_distortion)
+        self.full_size_curves = full_size_curves
+        self.damps_high_frequencies = spectral_mismatch(self.basis_M, self.basis_N) > non_isometric_spectra
         self._signatures = self.descriptor_weight * signature_products(self.basis_M, self.basis_N)
         self._filters_M, self._filters_N = kernel_filters(self.basis_M.evals), kernel_filters(self.basis_N.evals)
         self._prior_executor = prior_executor
@@ -330,7 +350,7 @@ class CombinedMapSolver(CurveMapSolver):
         size = min(NO17Settings().k, self.k)
         if len(self.curves) < self.full_size_curves:
             return C[:size, :size].copy()
-        if landmark_distortion(self.basis_M, self.basis_N, _pairs(self._landmarks())) <= self.non_isometric_distortion:
+        if not self.damps_high_frequencies:
             return C
         damped = C * HIGH_FREQUENCY_DAMPING
         damped[:size, :size] = C[:size, :size]
