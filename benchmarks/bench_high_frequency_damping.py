@@ -24,10 +24,10 @@ import json
 import math
 
 import numpy as np
-from common import machine, shared_data
+from common import HELD_OUT_PAIRS, machine, shared_data
 
 from curvefm import registry
-from curvefm.evaluation.reproduce.datasets import FULL_PAIRS, Pair
+from curvefm.evaluation.reproduce.datasets import DATASETS, FULL_PAIRS
 from curvefm.evaluation.reproduce.scoring import LoadedPair
 from curvefm.fmap import DEFAULT_K, CombinedMapSolver, Hints, landmark_distortion, spectral_mismatch
 from curvefm.runtime import limit_blas_threads
@@ -37,22 +37,6 @@ CURVES = 20
 UNDAMPED = math.inf  # no pair counts as strongly non-isometric: the map is handed out as solved
 SEEDS = 3
 BLOCK = 50
-HELD_OUT = (  # none of these pairs is in the reproduce suite
-    Pair("faust", "faust/tr_reg_060.off", "faust/tr_reg_071.off"),
-    Pair("faust", "faust/tr_reg_080.off", "faust/tr_reg_091.off"),
-    Pair("faust", "faust/tr_reg_010.off", "faust/tr_reg_051.off"),
-    Pair("tosca", "tosca/dog0.off", "tosca/dog2.off"),
-    Pair("tosca", "tosca/horse0.off", "tosca/horse5.off"),
-    Pair("tosca", "tosca/gorilla1.off", "tosca/gorilla5.off"),
-    Pair("tosca", "tosca/michael0.off", "tosca/michael1.off"),
-    Pair("tosca-cross", "tosca/cat0.off", "tosca/dog0.off"),
-    Pair("tosca-cross", "tosca/horse0.off", "tosca/wolf0.off"),
-    Pair("tosca-cross", "tosca/dog2.off", "tosca/horse5.off"),
-    Pair("tosca-cross", "tosca/michael0.off", "tosca/gorilla5.off"),
-    Pair("tosca-cross", "tosca/victoria0.off", "tosca/david1.off"),
-)
-
-
 def run(loaded: LoadedPair, seed: int, gammas: list[float]) -> dict:
     shapes = loaded.shapes
     curves = loaded.pool.curves(CURVES, seed, False)
@@ -67,7 +51,7 @@ def run(loaded: LoadedPair, seed: int, gammas: list[float]) -> dict:
     for gamma in gammas:
         weights = np.full(C_NM.shape, gamma)
         weights[:BLOCK, :BLOCK] = 1.0
-        errors[str(gamma)] = round(loaded.scorer(C_NM * weights, shapes.basis_M, shapes.basis_N).mean, 6)
+        errors[str(gamma)] = round(loaded.score(C_NM * weights, seed).mean, 6)
     distortion = landmark_distortion(shapes.basis_M, shapes.basis_N, Hints.from_curves(curves).landmarks)
     return {"dataset": loaded.pair.dataset, "pair": loaded.pair.name, "seed": seed,
             "landmark_distortion": round(float(distortion), 4),
@@ -79,10 +63,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--gammas", type=float, nargs="+", default=[0.0, 0.25, 0.5, 0.75, 1.0])
     parser.add_argument("--pairs", choices=("suite", "held-out"), default="suite")
+    parser.add_argument("--datasets", nargs="+", default=list(DATASETS), choices=list(DATASETS))
     args = parser.parse_args()
     limit_blas_threads()
     data, store, rows = shared_data(), Store(), []
-    for pair in FULL_PAIRS if args.pairs == "suite" else HELD_OUT:
+    for pair in (p for p in (FULL_PAIRS if args.pairs == "suite" else HELD_OUT_PAIRS) if p.dataset in args.datasets):
         loaded = LoadedPair.load(data, pair, DEFAULT_K, store)
         if loaded.pool.max_curves >= CURVES:
             rows.extend(run(loaded, seed, args.gammas) for seed in range(SEEDS))

@@ -40,10 +40,10 @@ import json
 from collections import defaultdict
 
 import numpy as np
-from common import machine, shared_data
+from common import HELD_OUT_PAIRS, machine, shared_data
 
 from curvefm import registry
-from curvefm.evaluation.reproduce.datasets import FULL_PAIRS
+from curvefm.evaluation.reproduce.datasets import DATASETS, FULL_PAIRS
 from curvefm.evaluation.reproduce.scoring import LoadedPair
 from curvefm.fmap import DEFAULT_K, Hints, curve_endpoints, landmark_distortion
 from curvefm.progress import no_progress
@@ -56,6 +56,8 @@ OFF = {"non_isometric_distortion": 1e9, "non_isometric_spectra": 1e9}  # neither
 METHODS = {
     "before": ("combined", OFF),
     "after": ("combined", {}),
+    "without_curves_alone": ("combined", {"non_isometric_distortion": 1e9}),
+    "without_damping": ("combined", {"non_isometric_spectra": 1e9}),
     "curve_energy": ("curves", {}),
     "obcs12": ("obcs12", {}),
     "no17": ("no17", {}),
@@ -84,13 +86,13 @@ def run(loaded: LoadedPair, count: int, seed: int) -> dict:
     for key, (method, params) in METHODS.items():
         plugin, params = registry.load("method", method, params)
         maps = plugin.run(shapes, hints, params, no_progress)
-        row[key] = round(loaded.scorer(maps.C_NM, shapes.basis_M, shapes.basis_N).mean, 5)
+        row[key] = round(loaded.score(maps.C_NM, seed).mean, 5)
     if count >= 20:
         plugin, params = registry.load("method", "combined", OFF | {"full_size_curves": 1})
         maps = plugin.run(shapes, hints, params, no_progress)
         for size in SIZES:
             C_NM = maps.C_NM[:size, :size]
-            row[f"size_{size}"] = round(loaded.scorer(C_NM, shapes.basis_M, shapes.basis_N).mean, 5)
+            row[f"size_{size}"] = round(loaded.score(C_NM, seed).mean, 5)
     return row
 
 
@@ -111,11 +113,13 @@ def cells(rows: list[dict]) -> list[dict]:
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--counts", type=int, nargs="+", default=[1, 2, 5, 10, 20])
+    parser.add_argument("--datasets", nargs="+", default=list(DATASETS), choices=list(DATASETS))
+    parser.add_argument("--pairs", choices=("suite", "held-out"), default="suite")
     args = parser.parse_args()
     limit_blas_threads()
     data, store = shared_data(), Store()
     rows = []
-    for pair in FULL_PAIRS:
+    for pair in (p for p in (FULL_PAIRS if args.pairs == "suite" else HELD_OUT_PAIRS) if p.dataset in args.datasets):
         loaded = LoadedPair.load(data, pair, DEFAULT_K, store)
         for count in (c for c in args.counts if c <= loaded.pool.max_curves):
             rows.extend(run(loaded, count, seed) for seed in range(SEEDS))

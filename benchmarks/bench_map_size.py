@@ -51,7 +51,7 @@ def main():
                     maps = plugin.run(loaded.shapes, hints, params, no_progress)
                     for size in args.sizes:
                         C_NM = maps.C_NM[:size, :size]
-                        error = loaded.scorer(C_NM, loaded.shapes.basis_M, loaded.shapes.basis_N).mean
+                        error = loaded.score(C_NM, seed).mean
                         errors[(pair.dataset, count, weight, size)].append(error)
     rows = [{"dataset": d, "curves": c, "prior_weight": w, "size": s, "runs": len(e),
              "mean": round(float(np.mean(e)), 5)} for (d, c, w, s), e in errors.items()]  # fmt: skip

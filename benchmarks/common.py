@@ -16,11 +16,26 @@ import httpx
 from curvefm.access import UserStore
 from curvefm.errors import Conflict
 from curvefm.evaluation import ground_truth_for
+from curvefm.evaluation.reproduce.datasets import Pair
 from curvefm.geometry import load_mesh
 from curvefm.spectral import ShapePair
 from curvefm.store import Store
 
 REPO = Path(__file__).resolve().parents[1]
+HELD_OUT_PAIRS = (  # pairs the reproduce suite does not hold, to check rules chosen on it
+    Pair("faust", "faust/tr_reg_060.off", "faust/tr_reg_071.off"),
+    Pair("faust", "faust/tr_reg_080.off", "faust/tr_reg_091.off"),
+    Pair("faust", "faust/tr_reg_010.off", "faust/tr_reg_051.off"),
+    Pair("tosca", "tosca/dog0.off", "tosca/dog2.off"),
+    Pair("tosca", "tosca/horse0.off", "tosca/horse5.off"),
+    Pair("tosca", "tosca/gorilla1.off", "tosca/gorilla5.off"),
+    Pair("tosca", "tosca/michael0.off", "tosca/michael1.off"),
+    Pair("tosca-cross", "tosca/cat0.off", "tosca/dog0.off"),
+    Pair("tosca-cross", "tosca/horse0.off", "tosca/wolf0.off"),
+    Pair("tosca-cross", "tosca/dog2.off", "tosca/horse5.off"),
+    Pair("tosca-cross", "tosca/michael0.off", "tosca/gorilla5.off"),
+    Pair("tosca-cross", "tosca/victoria0.off", "tosca/david1.off"),
+)
 
 
 def shared_data() -> Path:

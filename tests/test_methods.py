@@ -8,6 +8,8 @@ from shapes import basis_of, stretched_ellipsoid_pair
 from curvefm import registry
 from curvefm.errors import CurvefmError
 from curvefm.evaluation import CurvePool, evaluate_map, ground_truth_curves, ground_truth_for
+from curvefm.evaluation.reproduce.datasets import Pair
+from curvefm.evaluation.reproduce.scoring import LoadedPair
 from curvefm.fmap import (
     DescriptorEnergy,
     Hints,
@@ -198,9 +200,41 @@ def test_exact_curves_need_dense_ground_truth(shared_data):
     source, target = shared_data / "tosca/horse0.off", shared_data / "tosca/wolf0.off"
     M, N = load_mesh(source), load_mesh(target)
     pool = CurvePool(M, N, ground_truth_for(source, target, M, N))
-    assert len(pool.candidates) == 21  # the shared animal landmarks
+    assert len(pool.landmarks) == 21  # the shared animal landmarks
     with pytest.raises(CurvefmError, match="exact curves need a dense ground truth"):
         pool.curves(2, seed=0, exact=True)
+
+
+def test_sparse_truth_holds_landmarks_out_of_the_curves(shared_data):
+    """With 21 landmarks, 20 curves drawn from all of them would end at nearly every point the maps are scored at."""
+    source, target = shared_data / "tosca/horse0.off", shared_data / "tosca/wolf0.off"
+    M, N = load_mesh(source), load_mesh(target)
+    pool = CurvePool(M, N, ground_truth_for(source, target, M, N))
+    assert pool.max_curves == 14 * 13 // 2
+    held_out = [set(pool.held_out(seed).tolist()) for seed in range(3)]
+    assert all(len(h) == 7 for h in held_out) and set.union(*held_out) == set(pool.landmarks.tolist())
+    for seed in range(3):
+        ends = {v for pair in pool.endpoints(20, seed) for v in pair}
+        assert ends <= set(pool.landmarks.tolist()) and not ends & held_out[seed]
+        assert len(ends) > 7  # the curves still spread over the remaining landmarks
+
+
+def test_maps_are_scored_at_the_held_out_landmarks_only(shared_data, tmp_path):
+    pair = Pair("tosca-cross", "tosca/horse0.off", "tosca/wolf0.off")
+    loaded = LoadedPair.load(shared_data, pair, 20, Store(tmp_path))
+    C_NM = np.eye(20)
+    everywhere = loaded.scorer(C_NM, loaded.shapes.basis_M, loaded.shapes.basis_N)
+    assert everywhere.count == 21
+    for seed in range(2):
+        held_out = loaded.pool.held_out(seed)
+        mask = np.isin(loaded.scorer.rows_M, held_out)
+        scored = loaded.score(C_NM, seed)
+        assert scored.count == 7 == mask.sum()
+        p2p = np.zeros(loaded.shapes.mesh_M.n_vertices, dtype=np.int64)
+        p2p[held_out] = pointwise_from_fmap(C_NM, loaded.shapes.basis_N, loaded.shapes.basis_M, rows=held_out)
+        partner = dict(zip(loaded.truth.ids_X.tolist(), loaded.truth.ids_Y.tolist(), strict=True))
+        truth = (held_out, np.array([partner[int(v)] for v in held_out]))
+        assert scored.mean == pytest.approx(evaluate_map(p2p, truth, loaded.shapes.mesh_N).mean, rel=1e-5)
 
 
 @pytest.mark.slow

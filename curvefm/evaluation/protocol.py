@@ -23,6 +23,11 @@ from curvefm.matching import MatchResult, match
 from curvefm.progress import Progress, no_progress
 from curvefm.store import Store
 
+HELD_OUT_FOLDS = 3
+"""A sparse ground truth's landmarks are cut into this many folds; each seed scores the maps at one of them and
+draws its curves' endpoints from the others."""
+HELD_OUT_STREAM = 7  # seeds the landmarks' shuffle apart from the endpoints' draws
+
 
 def ground_truth_curves(
     mesh_M: Mesh, mesh_N: Mesh, truth: GroundTruth, n_curves: int, seed_vertex: int = 0
@@ -51,9 +56,12 @@ def ground_truth_curves(
 class CurvePool:
     """Candidate endpoints on the source and their partners, from which seeded random curves are drawn.
 
-    With dense ground truth the candidates are ``size`` farthest points (snapped to vertices with a partner);
-    with sparse ground truth (landmarks) they are the landmarks themselves. A subset of n curves is n
-    distinct unordered pairs of candidates, so curves may share an endpoint, as clicked curves often do.
+    With dense ground truth the candidates are ``size`` farthest points (snapped to vertices with a partner), a
+    few among the thousand rows a map is scored on. With sparse ground truth (landmarks) each seed holds out a
+    fold of the landmarks for scoring (:meth:`held_out`) and draws endpoints from the rest: with 21 landmarks, 20
+    curves would otherwise end at nearly all of them, and a map would be scored on the very points it was given.
+    A subset of n curves is n distinct unordered pairs of candidates, so curves may share an
+    endpoint, as clicked curves often do.
     """
 
     def __init__(self, mesh_M: Mesh, mesh_N: Mesh, truth: GroundTruth, size: int = 40):
@@ -64,24 +72,40 @@ class CurvePool:
             samples = farthest_point_sampling(mesh_M, size)
             nearest = [known[np.argmin(np.linalg.norm(mesh_M.vertices[known] - mesh_M.vertices[v], axis=1))]
                        for v in samples]  # fmt: skip
-            self.candidates = np.array(list(dict.fromkeys(int(v) for v in nearest)), dtype=np.int64)
+            self.landmarks = np.array(list(dict.fromkeys(int(v) for v in nearest)), dtype=np.int64)
         else:
-            self.candidates = np.array(list(dict.fromkeys(truth.ids_X.tolist())), dtype=np.int64)
+            self.landmarks = np.array(list(dict.fromkeys(truth.ids_X.tolist())), dtype=np.int64)
+
+    def held_out(self, seed: int) -> np.ndarray:
+        """Source vertices kept from the curves of this seed, to score the maps at (empty for dense truth).
+
+        The landmarks are shuffled once and cut into ``HELD_OUT_FOLDS`` folds; seed s holds out fold s mod
+        ``HELD_OUT_FOLDS``, so every run of that many seeds scores every landmark once."""
+        if not self.truth.dense:
+            order = np.random.default_rng(HELD_OUT_STREAM).permutation(self.landmarks)
+            return np.sort(np.array_split(order, HELD_OUT_FOLDS)[seed % HELD_OUT_FOLDS])
+        return np.zeros(0, dtype=np.int64)
+
+    def candidates(self, seed: int) -> np.ndarray:
+        """The endpoints the curves of this seed are drawn from."""
+        return self.landmarks[~np.isin(self.landmarks, self.held_out(seed))]
 
     @property
     def max_curves(self) -> int:
-        n = len(self.candidates)
+        """The most distinct curves every seed can draw."""
+        n = min(len(self.candidates(seed)) for seed in range(HELD_OUT_FOLDS))
         return n * (n - 1) // 2
 
     def endpoints(self, count: int, seed: int) -> list[tuple[int, int]]:
         """``count`` distinct candidate pairs (source vertex ids), the same for the same seed."""
         if count > self.max_curves:
-            raise InvalidInput(f"{len(self.candidates)} candidate endpoints cannot give {count} distinct curves")
+            raise InvalidInput(f"{self.max_curves} candidate endpoint pairs cannot give {count} distinct curves")
+        candidates = self.candidates(seed)
         rng = np.random.default_rng(seed)
         chosen: dict[tuple[int, int], None] = {}
         while len(chosen) < count:
-            a, b = rng.choice(len(self.candidates), size=2, replace=False)
-            chosen[(int(self.candidates[min(a, b)]), int(self.candidates[max(a, b)]))] = None
+            a, b = rng.choice(len(candidates), size=2, replace=False)
+            chosen[(int(candidates[min(a, b)]), int(candidates[max(a, b)]))] = None
         return list(chosen)
 
     def curves(self, count: int, seed: int, exact: bool) -> list[tuple[np.ndarray, np.ndarray]]:

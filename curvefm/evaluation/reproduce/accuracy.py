@@ -82,7 +82,7 @@ def run_task(loaded: LoadedPair, count: int, seed: int) -> list[dict]:
             out.append(record | {"failed": str(exc)})
             continue
         record["seconds"] = time.perf_counter() - start
-        errors = loaded.scorer(maps.C_NM, loaded.shapes.basis_M, loaded.shapes.basis_N)
+        errors = loaded.score(maps.C_NM, seed)
         out.append(record | {"mean": errors.mean, "mean_area": errors.mean_area, "auc": errors.auc,
                              "curve": errors.curve})  # fmt: skip
     return out

@@ -1,9 +1,10 @@
 """Loading a ground-truth pair once and scoring many functional maps on it cheaply.
 
-Scoring follows the Princeton protocol on a fixed, seeded sample of ground-truth rows (all rows of a sparse
-landmark truth, at most ``max_rows`` of a dense one): the source vertex of each row is mapped to the target
-by nearest neighbours in the spectral embedding of ``C_NM`` (Ovsjanikov et al. 2012, one map, as in the
-paper) and the geodesic distance to its true partner is looked up in a table computed once per pair.
+Scoring follows the Princeton protocol on a fixed, seeded sample of ground-truth rows (at most ``max_rows`` of a
+dense truth; of a sparse landmark truth, the landmarks the curves of a seed were not drawn from): the source
+vertex of each row is mapped to the target by nearest neighbours in the spectral embedding of ``C_NM``
+(Ovsjanikov et al. 2012, one map, as in the paper) and the geodesic distance to its true partner is looked up
+in a table computed once per pair.
 """
 
 from __future__ import annotations
@@ -46,6 +47,13 @@ class LoadedPair:
         progress(1.0, f"{pair.name}: ready")
         return cls(pair, ShapePair(mesh_M, mesh_N, basis_M, basis_N), truth, pool, scorer)
 
+    def score(self, C_NM: np.ndarray, seed: int) -> ErrorSummary:
+        """Errors of a map solved from the curves of ``seed``, at the rows those curves did not use (all rows of a
+        dense truth; the seed's held-out landmarks of a sparse one)."""
+        held_out = self.pool.held_out(seed)
+        rows = np.isin(self.scorer.rows_M, held_out) if len(held_out) else None
+        return self.scorer(C_NM, self.shapes.basis_M, self.shapes.basis_N, rows)
+
 
 @dataclass
 class Scorer:
@@ -64,6 +72,8 @@ class Scorer:
         table = geodesic_distances(mesh_N, partners).astype(np.float32)
         return cls(truth.ids_X[rows], columns, table, geodesic_diameter(mesh_N), mesh_N.area)
 
-    def __call__(self, C_NM: np.ndarray, basis_M: Basis, basis_N: Basis) -> ErrorSummary:
-        predicted = pointwise_from_fmap(C_NM, basis_N, basis_M, rows=self.rows_M)
-        return ErrorSummary.from_distances(self.table[self.columns, predicted], self.diameter, self.area)
+    def __call__(self, C_NM: np.ndarray, basis_M: Basis, basis_N: Basis, rows=None) -> ErrorSummary:
+        """Errors at the sampled rows, or at those of them ``rows`` (a mask over the sample) selects."""
+        sources, columns = (self.rows_M, self.columns) if rows is None else (self.rows_M[rows], self.columns[rows])
+        predicted = pointwise_from_fmap(C_NM, basis_N, basis_M, rows=sources)
+        return ErrorSummary.from_distances(self.table[columns, predicted], self.diameter, self.area)
