@@ -20,6 +20,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from curvefm.errors import InvalidInput
 from curvefm.fmap import (
+    CURVES_ALONE_FROM,
     DEFAULT_ALPHA,
     DEFAULT_COMBINED_ALPHA,
     DEFAULT_DESCRIPTOR_WEIGHT,
@@ -87,7 +88,7 @@ class CombinedParams(CurvesParams):
     non_isometric_distortion: float = Field(
         NON_ISOMETRIC_DISTORTION,
         ge=0,
-        description="from 10 curves until full_size_curves, a pair whose curve "
+        description=f"from {CURVES_ALONE_FROM} curves on, a pair whose curve "
         "endpoints' biharmonic distances differ by more than this (median |log ratio|, shapes scaled to unit area) "
         "is solved with the curve energy alone: the descriptors and the prior assume a near-isometry",
     )
@@ -112,8 +113,7 @@ def run_curves(pair: ShapePair, hints: Hints, params: CurvesParams, progress: Pr
 def run_combined(
     pair: ShapePair, hints: Hints, params: CombinedParams, progress: Progress = no_progress
 ) -> FunctionalMaps:
-    if curves_alone_suffice(pair.basis_M, pair.basis_N, hints.curves, params.full_size_curves,
-                            params.non_isometric_distortion):  # fmt: skip
+    if curves_alone_suffice(pair.basis_M, pair.basis_N, hints.curves, params.non_isometric_distortion):
         curve_energy = CurvesParams(alpha=params.alpha, samples=params.samples)  # the descriptors would mislead
         return _solve_curves(CurveMapSolver, pair, hints, curve_energy.model_dump(), progress)
     return _solve_curves(CombinedMapSolver, pair, hints, params.solver_params(), progress)

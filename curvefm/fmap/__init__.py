@@ -24,6 +24,7 @@ from curvefm.fmap.column_solve import (
     solve_columns,
 )
 from curvefm.fmap.combined import (
+    CURVES_ALONE_FROM,
     DEFAULT_COMBINED_ALPHA,
     DEFAULT_DESCRIPTOR_WEIGHT,
     DEFAULT_KERNEL_WEIGHT,
@@ -57,6 +58,7 @@ __all__ = [
     "DEFAULT_K",
     "DEFAULT_SAMPLES",
     "DescriptorEnergy",
+    "CURVES_ALONE_FROM",
     "EXACT_MAX_K",
     "FULL_SIZE_CURVES",
     "FunctionTransfer",
