@@ -219,7 +219,7 @@ def cmd_evaluate(args) -> int:
         return 0
     print(
         f"{report['source']} -> {report['target']}  ({report['ground_truth']}, {args.method}, {args.curves} curves, "
-        f"k={args.k})"
+        f"k={args.k}; scored at {report['scored_at']})"
     )
     for direction, e in report["errors"].items():
         print(

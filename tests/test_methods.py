@@ -7,7 +7,8 @@ from shapes import basis_of, stretched_ellipsoid_pair
 
 from curvefm import registry
 from curvefm.errors import CurvefmError
-from curvefm.evaluation import CurvePool, evaluate_map, ground_truth_curves, ground_truth_for
+from curvefm.evaluation import CurvePool, evaluate_map, evaluate_pair, ground_truth_curves, ground_truth_for
+from curvefm.evaluation.protocol import held_out_landmarks
 from curvefm.evaluation.reproduce.datasets import Pair
 from curvefm.evaluation.reproduce.scoring import LoadedPair
 from curvefm.fmap import (
@@ -217,6 +218,19 @@ def test_sparse_truth_holds_landmarks_out_of_the_curves(shared_data):
         ends = {v for pair in pool.endpoints(20, seed) for v in pair}
         assert ends <= set(pool.landmarks.tolist()) and not ends & held_out[seed]
         assert len(ends) > 7  # the curves still spread over the remaining landmarks
+
+
+def test_evaluate_scores_a_sparse_truth_at_landmarks_the_curves_avoid(shared_data, tmp_path):
+    source, target = shared_data / "tosca/horse0.off", shared_data / "tosca/wolf0.off"
+    report = evaluate_pair(source, target, n_curves=3, k=20, store=Store(tmp_path))
+    assert report["scored_at"] == "7 landmarks the curves do not end at"
+    assert report["errors"]["source_to_target"]["count"] == report["errors"]["target_to_source"]["count"] == 7
+    M, N = load_mesh(source), load_mesh(target)
+    truth = ground_truth_for(source, target, M, N)
+    ends = {int(v) for path_M, _ in ground_truth_curves(M, N, truth, 3) for v in (path_M[0], path_M[-1])}
+    assert len(ends) == 6 and not ends & set(held_out_landmarks(truth, 0).tolist())
+    with pytest.raises(CurvefmError, match="14 known correspondences .the others are held out"):
+        ground_truth_curves(M, N, truth, 8)
 
 
 def test_maps_are_scored_at_the_held_out_landmarks_only(shared_data, tmp_path):

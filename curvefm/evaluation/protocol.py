@@ -32,11 +32,14 @@ HELD_OUT_STREAM = 7  # seeds the landmarks' shuffle apart from the endpoints' dr
 def ground_truth_curves(
     mesh_M: Mesh, mesh_N: Mesh, truth: GroundTruth, n_curves: int, seed_vertex: int = 0
 ) -> list[tuple[np.ndarray, np.ndarray]]:
-    """``n_curves`` pairs of corresponding vertex paths (internal ids) built from the ground truth."""
+    """``n_curves`` pairs of corresponding vertex paths (internal ids) built from the ground truth. A sparse ground
+    truth's endpoints avoid the landmarks :func:`held_out_landmarks` keeps for scoring (seed 0)."""
     partner = dict(zip(truth.ids_X.tolist(), truth.ids_Y.tolist(), strict=True))
     known = np.fromiter(partner, dtype=np.int64)
+    known = known[~np.isin(known, held_out_landmarks(truth, 0))]
     if len(known) < 2 * n_curves:
-        raise InvalidInput(f"{len(known)} known correspondences cannot give {n_curves} curves")
+        held = "" if truth.dense else " (the others are held out to score the map at)"
+        raise InvalidInput(f"{len(known)} known correspondences{held} cannot give {n_curves} curves")
     endpoints = []
     for vertex in farthest_point_sampling(mesh_M, 2 * n_curves, seed_vertex):
         if vertex not in partner:  # sparse truth: snap to the nearest vertex that has a partner
@@ -51,6 +54,17 @@ def ground_truth_curves(
             )
         )
     return curves
+
+
+def held_out_landmarks(truth: GroundTruth, seed: int) -> np.ndarray:
+    """The source vertices of a sparse ground truth that the curves of ``seed`` avoid and the maps are scored at
+    (empty for a dense one). The landmarks are shuffled once and cut into ``HELD_OUT_FOLDS`` folds; seed s holds out
+    fold s mod ``HELD_OUT_FOLDS``, so every run of that many seeds scores every landmark once."""
+    if truth.dense:
+        return np.zeros(0, dtype=np.int64)
+    landmarks = np.array(list(dict.fromkeys(truth.ids_X.tolist())), dtype=np.int64)
+    order = np.random.default_rng(HELD_OUT_STREAM).permutation(landmarks)
+    return np.sort(np.array_split(order, HELD_OUT_FOLDS)[seed % HELD_OUT_FOLDS])
 
 
 class CurvePool:
@@ -77,14 +91,8 @@ class CurvePool:
             self.landmarks = np.array(list(dict.fromkeys(truth.ids_X.tolist())), dtype=np.int64)
 
     def held_out(self, seed: int) -> np.ndarray:
-        """Source vertices kept from the curves of this seed, to score the maps at (empty for dense truth).
-
-        The landmarks are shuffled once and cut into ``HELD_OUT_FOLDS`` folds; seed s holds out fold s mod
-        ``HELD_OUT_FOLDS``, so every run of that many seeds scores every landmark once."""
-        if not self.truth.dense:
-            order = np.random.default_rng(HELD_OUT_STREAM).permutation(self.landmarks)
-            return np.sort(np.array_split(order, HELD_OUT_FOLDS)[seed % HELD_OUT_FOLDS])
-        return np.zeros(0, dtype=np.int64)
+        """Source vertices kept from the curves of this seed, to score the maps at (:func:`held_out_landmarks`)."""
+        return held_out_landmarks(self.truth, seed)
 
     def candidates(self, seed: int) -> np.ndarray:
         """The endpoints the curves of this seed are drawn from."""
@@ -170,13 +178,21 @@ def evaluate_pair(
         mesh_M, mesh_N, curves, k=k, alpha=alpha, store=store, progress=progress,
         method=method, method_params=method_params,
     )  # fmt: skip
+    scored = truth if truth.dense else held_out_rows(truth, held_out_landmarks(truth, 0))
     return {
         "source": str(source),
         "target": str(target),
         "ground_truth": truth.kind,
+        "scored_at": "all rows" if truth.dense else f"{len(scored)} landmarks the curves do not end at",
         "method": method,
         "curves": n_curves,
         "k": k,
         "alpha": alpha,
-        "errors": score(result, truth),
+        "errors": score(result, scored),
     }
+
+
+def held_out_rows(truth: GroundTruth, sources: np.ndarray) -> GroundTruth:
+    """The rows of a ground truth whose source vertex is one of ``sources``."""
+    rows = np.isin(truth.ids_X, sources)
+    return GroundTruth(truth.ids_X[rows], truth.ids_Y[rows], truth.kind, truth.dense)
