@@ -6,12 +6,12 @@ cat -> lion), with 2 and 10 traced curves drawn as ``curvefm reproduce`` draws t
 Each row starts from the default method's (``combined``) functional maps at k = 120 and records the mean
 geodesic error / sqrt(area) of the start (the ``nearest-neighbor`` converter, defaults: the maps the guard
 compares with), of each refiner's returned map, and of the map the refiner produced before the guard chose
-(``refined``), source -> target / target -> source on the ground truth (dense, or the shared landmarks across
-TOSCA classes), which map was kept and why, the intrinsic figures, and the converter's seconds (guard
-included). A *regression* is a row where a refiner's returned map is worse than its start by more than 1%
-(relative, on the mean of both directions); a *missed gain* is one where the guard returned the start although
-the refined map was better by more than 1%. Prints one JSON object (``--out`` also writes it);
-docs/results/refinement_guard.json is its output.
+(``refined``), source -> target / target -> source on the ground truth (dense, or across TOSCA classes the shared
+landmarks the curves do not end at, as ``curvefm reproduce`` scores them), which map was kept and why, the
+intrinsic figures, and the converter's seconds (guard included). A *regression* is a row where a refiner's returned
+map is worse than its start by more than 1% (relative, on the mean of both directions); a *missed gain* is one where
+the guard returned the start although the refined map was better by more than 1%. Prints one JSON object (``--out``
+also writes it); docs/results/refinement_guard.json is its output.
 
     nice python benchmarks/bench_refinement_guard.py [--counts 2 10] [--seeds 0] [--pairs faust tosca-cross]
         [--out docs/results/refinement_guard.json] [--maps-dir DIR]
@@ -64,7 +64,7 @@ def recording(plugin):
     return dataclasses.replace(plugin, run=run), box
 
 
-def refine(loaded: LoadedPair, fmaps, paths, name: str, maps_out: dict) -> dict:
+def refine(loaded: LoadedPair, fmaps, paths, truth, name: str, maps_out: dict) -> dict:
     plugin, params = registry.load("converter", name, None)
     wrapped, box = recording(plugin)
     start = time.perf_counter()
@@ -73,8 +73,8 @@ def refine(loaded: LoadedPair, fmaps, paths, name: str, maps_out: dict) -> dict:
     refined = dataclasses.replace(result, maps=box["maps"])
     maps_out[f"{name}_MN"], maps_out[f"{name}_NM"] = box["maps"].p2p_MN, box["maps"].p2p_NM
     return {
-        "returned": errors(result, loaded.truth),
-        "refined": errors(refined, loaded.truth),
+        "returned": errors(result, truth),
+        "refined": errors(refined, truth),
         "kept": result.kept,
         "reason": result.reason,
         "quality": result.quality,
@@ -84,6 +84,7 @@ def refine(loaded: LoadedPair, fmaps, paths, name: str, maps_out: dict) -> dict:
 
 def run_row(loaded: LoadedPair, count: int, seed: int, maps_dir: Path | None) -> dict:
     paths = loaded.pool.curves(count, seed, exact=False)
+    truth = loaded.truth_for(seed)
     method, method_params = registry.load("method", "combined", None)
     start = time.perf_counter()
     fmaps = method.run(loaded.shapes, Hints.from_curves(paths), method_params, lambda *_: None)
@@ -93,15 +94,15 @@ def run_row(loaded: LoadedPair, count: int, seed: int, maps_dir: Path | None) ->
         "count": count,
         "seed": seed,
         "vertices": [loaded.shapes.mesh_M.n_vertices, loaded.shapes.mesh_N.n_vertices],
-        "truth": f"{loaded.truth.kind}, {len(loaded.truth)} rows",
+        "truth": f"{truth.kind}, {len(truth)} rows",
         "solve_s": round(time.perf_counter() - start, 1),
     }
     nn, nn_params = registry.load("converter", "nearest-neighbor", None)
     start_result = convert(loaded.shapes, fmaps, nn, nn_params, paths=paths)
-    row["start"] = errors(start_result, loaded.truth)
+    row["start"] = errors(start_result, truth)
     maps = {"start_MN": start_result.maps.p2p_MN, "start_NM": start_result.maps.p2p_NM}
     for name in REFINERS:
-        row[name] = refine(loaded, fmaps, paths, name, maps)
+        row[name] = refine(loaded, fmaps, paths, truth, name, maps)
         print(
             f"{loaded.pair.name} {count} curves: {name} {row[name]['returned']['mean']} "
             f"(start {row['start']['mean']}, refined {row[name]['refined']['mean']}, kept {row[name]['kept']}, "
