@@ -38,6 +38,8 @@ CURVES = 20
 UNDAMPED = math.inf  # no pair counts as strongly non-isometric: the map is handed out as solved
 SEEDS = 3
 BLOCK = 50
+
+
 def run(loaded: LoadedPair, seed: int, gammas: list[float]) -> dict:
     shapes = loaded.shapes
     curves = loaded.pool.curves(CURVES, seed, False)

@@ -35,6 +35,7 @@ from common import machine, shared_data
 
 from curvefm import registry
 from curvefm.evaluation import score
+from curvefm.evaluation.protocol import scored_truth
 from curvefm.evaluation.reproduce.datasets import FULL_PAIRS
 from curvefm.evaluation.reproduce.scoring import LoadedPair
 from curvefm.fmap import DEFAULT_K, Hints
@@ -84,7 +85,7 @@ def refine(loaded: LoadedPair, fmaps, paths, truth, name: str, maps_out: dict) -
 
 def run_row(loaded: LoadedPair, count: int, seed: int, maps_dir: Path | None) -> dict:
     paths = loaded.pool.curves(count, seed, exact=False)
-    truth = loaded.truth_for(seed)
+    truth = scored_truth(loaded.truth, seed)
     method, method_params = registry.load("method", "combined", None)
     start = time.perf_counter()
     fmaps = method.run(loaded.shapes, Hints.from_curves(paths), method_params, lambda *_: None)

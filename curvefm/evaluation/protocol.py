@@ -62,9 +62,22 @@ def held_out_landmarks(truth: GroundTruth, seed: int) -> np.ndarray:
     fold s mod ``HELD_OUT_FOLDS``, so every run of that many seeds scores every landmark once."""
     if truth.dense:
         return np.zeros(0, dtype=np.int64)
-    landmarks = np.array(list(dict.fromkeys(truth.ids_X.tolist())), dtype=np.int64)
-    order = np.random.default_rng(HELD_OUT_STREAM).permutation(landmarks)
+    order = np.random.default_rng(HELD_OUT_STREAM).permutation(distinct_sources(truth))
     return np.sort(np.array_split(order, HELD_OUT_FOLDS)[seed % HELD_OUT_FOLDS])
+
+
+def scored_truth(truth: GroundTruth, seed: int) -> GroundTruth:
+    """The rows a map solved from the curves of ``seed`` is scored on: all of a dense truth, the
+    :func:`held_out_landmarks` of a sparse one."""
+    if truth.dense:
+        return truth
+    rows = np.isin(truth.ids_X, held_out_landmarks(truth, seed))
+    return GroundTruth(truth.ids_X[rows], truth.ids_Y[rows], truth.kind, truth.dense)
+
+
+def distinct_sources(truth: GroundTruth) -> np.ndarray:
+    """The ground truth's source vertices, each once, in the order of its rows."""
+    return np.array(list(dict.fromkeys(truth.ids_X.tolist())), dtype=np.int64)
 
 
 class CurvePool:
@@ -74,8 +87,8 @@ class CurvePool:
     few among the thousand rows a map is scored on. With sparse ground truth (landmarks) each seed holds out a
     fold of the landmarks for scoring (:meth:`held_out`) and draws endpoints from the rest: with 21 landmarks, 20
     curves would otherwise end at nearly all of them, and a map would be scored on the very points it was given.
-    A subset of n curves is n distinct unordered pairs of candidates, so curves may share an
-    endpoint, as clicked curves often do.
+    A subset of n curves is n distinct unordered pairs of candidates, so curves may share an endpoint, as clicked
+    curves often do.
     """
 
     def __init__(self, mesh_M: Mesh, mesh_N: Mesh, truth: GroundTruth, size: int = 40):
@@ -88,7 +101,7 @@ class CurvePool:
                        for v in samples]  # fmt: skip
             self.landmarks = np.array(list(dict.fromkeys(int(v) for v in nearest)), dtype=np.int64)
         else:
-            self.landmarks = np.array(list(dict.fromkeys(truth.ids_X.tolist())), dtype=np.int64)
+            self.landmarks = distinct_sources(truth)
 
     def held_out(self, seed: int) -> np.ndarray:
         """Source vertices kept from the curves of this seed, to score the maps at (:func:`held_out_landmarks`)."""
@@ -178,7 +191,7 @@ def evaluate_pair(
         mesh_M, mesh_N, curves, k=k, alpha=alpha, store=store, progress=progress,
         method=method, method_params=method_params,
     )  # fmt: skip
-    scored = truth if truth.dense else held_out_rows(truth, held_out_landmarks(truth, 0))
+    scored = scored_truth(truth, 0)
     return {
         "source": str(source),
         "target": str(target),
@@ -190,9 +203,3 @@ def evaluate_pair(
         "alpha": alpha,
         "errors": score(result, scored),
     }
-
-
-def held_out_rows(truth: GroundTruth, sources: np.ndarray) -> GroundTruth:
-    """The rows of a ground truth whose source vertex is one of ``sources``."""
-    rows = np.isin(truth.ids_X, sources)
-    return GroundTruth(truth.ids_X[rows], truth.ids_Y[rows], truth.kind, truth.dense)

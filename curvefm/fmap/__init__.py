@@ -47,6 +47,7 @@ from curvefm.fmap.solver import DEFAULT_ALPHA, DEFAULT_K, CurveMapSolver, CurveT
 from curvefm.fmap.transfer import FunctionTransfer, transfer
 
 __all__ = [
+    "CURVES_ALONE_FROM",
     "CombinedMapSolver",
     "CurveMapSolver",
     "CurveTerm",
@@ -58,7 +59,6 @@ __all__ = [
     "DEFAULT_K",
     "DEFAULT_SAMPLES",
     "DescriptorEnergy",
-    "CURVES_ALONE_FROM",
     "EXACT_MAX_K",
     "FULL_SIZE_CURVES",
     "FunctionTransfer",

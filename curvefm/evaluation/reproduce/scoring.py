@@ -16,7 +16,7 @@ import numpy as np
 
 from curvefm.evaluation.ground_truth import GroundTruth, ground_truth_for
 from curvefm.evaluation.metrics import ErrorSummary
-from curvefm.evaluation.protocol import CurvePool, held_out_rows
+from curvefm.evaluation.protocol import CurvePool
 from curvefm.evaluation.reproduce.datasets import Pair
 from curvefm.geometry import Mesh, geodesic_diameter, geodesic_distances, load_mesh
 from curvefm.pointwise import pointwise_from_fmap
@@ -47,13 +47,10 @@ class LoadedPair:
         progress(1.0, f"{pair.name}: ready")
         return cls(pair, ShapePair(mesh_M, mesh_N, basis_M, basis_N), truth, pool, scorer)
 
-    def truth_for(self, seed: int) -> GroundTruth:
-        """The ground truth a map solved from the curves of ``seed`` is scored on (see :meth:`score`)."""
-        return self.truth if self.truth.dense else held_out_rows(self.truth, self.pool.held_out(seed))
-
     def score(self, C_NM: np.ndarray, seed: int) -> ErrorSummary:
         """Errors of a map solved from the curves of ``seed``, at the rows those curves did not use (all rows of a
-        dense truth; the seed's held-out landmarks of a sparse one)."""
+        dense truth; the seed's held-out landmarks of a sparse one, as :func:`~curvefm.evaluation.protocol.scored_truth`
+        selects them)."""
         held_out = self.pool.held_out(seed)
         rows = np.isin(self.scorer.rows_M, held_out) if len(held_out) else None
         return self.scorer(C_NM, self.shapes.basis_M, self.shapes.basis_N, rows)
