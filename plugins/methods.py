@@ -28,7 +28,9 @@ from curvefm.fmap import (
     DEFAULT_PRIOR_WEIGHT,
     DEFAULT_SAMPLES,
     EXACT_MAX_K,
+    FULL_SIZE_ALPHA,
     FULL_SIZE_CURVES,
+    FULL_SIZE_KERNEL_WEIGHT,
     KERNEL_POINTS,
     NON_ISOMETRIC_DISTORTION,
     NON_ISOMETRIC_SPECTRA,
@@ -84,6 +86,12 @@ class CombinedParams(CurvesParams):
         le=100_000,
         description="with fewer curves than this (and a prior) the map has the "
         "prior's size, 50 x 50: its higher frequencies are not determined yet and would blur the pointwise map",
+    )
+    full_size_alpha: float = Field(
+        FULL_SIZE_ALPHA, ge=0, description="weight of Laplacian commutativity from full_size_curves curves on"
+    )
+    full_size_kernel_weight: float = Field(
+        FULL_SIZE_KERNEL_WEIGHT, ge=0, description="weight of the wave kernel maps from full_size_curves curves on"
     )
     non_isometric_distortion: float = Field(
         NON_ISOMETRIC_DISTORTION,

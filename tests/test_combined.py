@@ -107,6 +107,21 @@ def test_the_solver_minimises_the_combined_energy(shapes, paths):
         assert solver.energy(solver.C_MN) < solver.energy(solver.C_MN + 1e-3 * np.eye(K))
 
 
+def test_from_full_size_curves_on_the_map_is_solved_with_the_full_size_weights(shapes, paths):
+    curves = [(pm, pn, 1.0) for pm, pn in paths]
+    full_size = {"alpha": 0.5, "descriptor_weight": WEIGHTS["descriptor_weight"], "kernel_weight": 70.0}
+    with solver_on(shapes, prior_weight=0.0, full_size_curves=4, full_size_alpha=0.5,
+                   full_size_kernel_weight=70.0) as solver:  # fmt: skip
+        ids = solver.add_curves(curves)
+        assert solver.full_size and solver.commutativity_weight == 0.5
+        expected = dense_least_squares(shapes, curves, **full_size)
+        assert np.allclose(solver.C_MN, expected, atol=1e-7 * np.abs(expected).max())
+        solver.remove_curve(ids[-1])  # below the count again: the weights the solver was made with
+        assert not solver.full_size and solver.commutativity_weight == WEIGHTS["alpha"]
+        expected = dense_least_squares(shapes, curves[:3], **WEIGHTS)
+        assert np.allclose(solver.C_MN, expected, atol=1e-7 * np.abs(expected).max())
+
+
 @pytest.mark.parametrize("count", [1, 2])
 def test_the_landmark_prior_pulls_the_map_towards_no17_from_the_endpoints(shapes, paths, count):
     curves = [(pm, pn, 1.0) for pm, pn in paths[:count]]

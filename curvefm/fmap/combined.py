@@ -34,7 +34,10 @@ the systems' mean diagonal. That adds ``w_p`` to the first 50 diagonal entries o
 per set of endpoints (in the background for an interactive solver). Below ``FULL_SIZE_CURVES`` curves the map is
 handed out at the prior's size: its higher frequencies are not determined by so few curves, and converted to
 points they only blurred the map (FAUST, 2 curves: 0.043 at 120 x 120, 0.031 at 50 x 50). Both settings come
-from benchmarks/bench_combined_prior.py (README, "The landmark prior").
+from benchmarks/bench_combined_prior.py (README, "The landmark prior"). From ``FULL_SIZE_CURVES`` on, the whole map
+is solved with its own weights, ``FULL_SIZE_ALPHA`` and ``FULL_SIZE_KERNEL_WEIGHT`` (less commutativity, more
+kernels: the curves now determine the higher frequencies; benchmarks/bench_full_size_weights.py). The solver keeps
+the curve and kernel terms' sums apart, so the weights change with the number of curves at no cost.
 
 Strongly non-isometric pairs. Wave kernel signatures, kernel maps and NO17 assume a near-isometry; where the shapes
 are far from one (TOSCA's horse -> cat) they pull the map away from what the curves say, and from
@@ -62,7 +65,7 @@ from curvefm.errors import CurvefmError
 from curvefm.fmap.column_solve import Prior
 from curvefm.fmap.landmark_prior import NO17Settings, NoLongerWanted, landmark_maps
 from curvefm.fmap.maps import FunctionalMaps, curve_endpoints
-from curvefm.fmap.solver import CurveMapSolver, basis_digest
+from curvefm.fmap.solver import CurveMapSolver, basis_digest, cross_products
 from curvefm.spectral import Basis, energy_filters, normalised, wave_kernel_signature
 
 # Chosen by the sweep in benchmarks/bench_combined_weights.py (see the README, "Choosing the combined energy's
@@ -82,6 +85,14 @@ reproduce`'s suite it took FAUST-5k with one curve from 0.0463 to 0.0458 and TOS
 FULL_SIZE_CURVES = 20
 """Below this many curves the map is handed out at the prior's size (50 x 50): its higher frequencies are not
 determined by so few curves and only blur the pointwise map (README, "The landmark prior")."""
+FULL_SIZE_ALPHA = 30.0
+FULL_SIZE_KERNEL_WEIGHT = 300.0
+"""From ``FULL_SIZE_CURVES`` curves on, the map is solved with these instead of ``alpha`` and ``kernel_weight``: the
+whole map is handed out, and its higher frequencies, which the weights above were swept for at the prior's size,
+are determined by the curves. Chosen by a sweep at 20 curves on `curvefm reproduce`'s suite (README, "Weights of
+the full-size map"): mean error 0.0100 / 0.0153 / 0.0114 / 0.0208 / 0.0469 -> 0.0088 / 0.0143 / 0.0108 / 0.0199 /
+0.0464 on FAUST / FAUST-5k / TOSCA / cat -> lion / TOSCA across classes; alpha 10-50 and kernel weights 300-1000
+all lie within 3% of it."""
 PRIOR_DELAY_S = 1.0
 """A live session's prior is computed once it has had no new curve for this long: in the browser benchmark, priors
 computed beside back-to-back clicks took click-to-texture p95 at 28k vertices from 79 to 146-164 ms (computed after
@@ -109,12 +120,12 @@ distortion separates less well: FAUST's pairs measure up to 0.22, cat -> lion 0.
 HIGH_FREQUENCY_DAMPING = 0.25
 """From ``FULL_SIZE_CURVES`` curves on, a pair above ``NON_ISOMETRIC_SPECTRA`` has its map handed out whole but with
 every entry outside the prior's 50 x 50 block multiplied by this: the curves determine those frequencies less well
-where the descriptors and the prior mislead. benchmarks/bench_high_frequency_damping.py with 20 curves, mean error of
-the runs above the threshold (across TOSCA classes at held-out landmarks): on the suite 0.0620 -> 0.0596 (0.5:
-0.0589; cut off at 50 x 50: 0.0633), on the pairs outside it 0.0803 -> 0.0622 (0.5: 0.0697); on the seven runs it
-still governs once strongly non-isometric pairs fall back to the curve energy (cat -> lion, wolf -> dog, one of
-cat -> dog) 0.0509 -> 0.0339 (block alone 0.0367); FAUST and TOSCA within classes lose with any damping (FAUST
-0.0100 -> 0.0116 at 0.25)."""
+where the descriptors and the prior mislead. benchmarks/bench_high_frequency_damping.py with 20 curves and the
+full-size weights, mean error of the runs above the threshold (across TOSCA classes at held-out landmarks): on the
+suite 0.0643 -> 0.0609 (0.5: 0.0599; cut off at 50 x 50: 0.0652), on the pairs outside it 0.0894 -> 0.0625 (0.5:
+0.0709); on the seven runs it still governs once strongly non-isometric pairs fall back to the curve energy
+(cat -> lion, wolf -> dog, one of cat -> dog) 0.0493 -> 0.0324 (block alone 0.0396); FAUST and TOSCA within classes
+lose with any damping (FAUST 0.0088 -> 0.0103 at 0.25)."""
 SUPERSEDED = object()  # what a prior job returns when newer endpoints were asked for while it waited
 ENERGIES = 20
 SIGMA = 0.06
@@ -210,6 +221,8 @@ class CombinedMapSolver(CurveMapSolver):
     computed in the solve.
     """
 
+    PRODUCTS = 6  # the curve term's three products, then the kernel term's (unweighted)
+
     def __init__(
         self,
         *args,
@@ -219,6 +232,8 @@ class CombinedMapSolver(CurveMapSolver):
         kernel_points: int = KERNEL_POINTS,
         prior_weight: float = DEFAULT_PRIOR_WEIGHT,
         full_size_curves: int = FULL_SIZE_CURVES,
+        full_size_alpha: float = FULL_SIZE_ALPHA,
+        full_size_kernel_weight: float = FULL_SIZE_KERNEL_WEIGHT,
         non_isometric_spectra: float = NON_ISOMETRIC_SPECTRA,
         prior_executor: Executor | None = None,
         **kwargs,
@@ -227,6 +242,7 @@ class CombinedMapSolver(CurveMapSolver):
         self.descriptor_weight, self.kernel_weight = float(descriptor_weight), float(kernel_weight)
         self.kernel_points, self.prior_weight = kernel_points, float(prior_weight)
         self.full_size_curves = full_size_curves
+        self.full_size_alpha, self.full_size_kernel_weight = float(full_size_alpha), float(full_size_kernel_weight)
         self.damps_high_frequencies = spectral_mismatch(self.basis_M, self.basis_N) > non_isometric_spectra
         self._signatures = self.descriptor_weight * signature_products(self.basis_M, self.basis_N)
         self._filters_M, self._filters_N = kernel_filters(self.basis_M.evals), kernel_filters(self.basis_N.evals)
@@ -236,21 +252,36 @@ class CombinedMapSolver(CurveMapSolver):
         self._wanted: frozenset = frozenset()  # the endpoints whose prior was last asked for
 
     def _side_factor(self, side: str, path: np.ndarray) -> np.ndarray:
-        """The curve's factor on one side with its kernels' rows below, ``[PhiBar / sqrt(s); sqrt(w / p) K_M^T]``
-        (and the same on N), so that the products sum the curve and kernel terms in one matrix product each."""
+        """The curve's factor on one side with its kernels' rows below, ``[PhiBar / sqrt(s); K_M^T / sqrt(d)]``
+        (and the same on N), restricted once for both terms."""
         restricted = self._restricted(side, path)
         kernels = kernel_coefficients(restricted, self._filters_M if side == "M" else self._filters_N,
                                       self.kernel_points)  # fmt: skip
-        kernel_scale = np.sqrt(self.kernel_weight / kernels.shape[1])
-        return np.vstack([restricted * (1.0 / np.sqrt(self.samples)), kernels.T * kernel_scale])
+        return np.vstack([restricted * (1.0 / np.sqrt(self.samples)), kernels.T * (1.0 / np.sqrt(kernels.shape[1]))])
 
     def _factor_params(self) -> tuple:
-        return (self.kernel_weight, self.kernel_points, ENERGIES, SIGMA)
+        return (self.kernel_points, ENERGIES, SIGMA)
 
-    def normal_equations(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        G_M, G_N, B = super().normal_equations()
-        W_M, W_N, W_B = self._signatures
-        return G_M + W_M, G_N + W_N, B + W_B
+    def _products(self, term) -> np.ndarray:
+        """The curve term's and the kernel term's products apart, so that the kernel weight is applied when the
+        sums are read and may change with the number of curves."""
+        X, Y = self._factors(term)
+        s = self.samples
+        return np.concatenate([cross_products(X[:s], Y[:s]), cross_products(X[s:], Y[s:])])
+
+    @property
+    def full_size(self) -> bool:
+        """Whether there are enough curves (``full_size_curves``) for the whole map and its weights."""
+        return len(self.curves) >= self.full_size_curves
+
+    @property
+    def commutativity_weight(self) -> float:
+        return self.full_size_alpha if self.full_size else self.alpha
+
+    def _weighted(self, mean_products: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        kernel_weight = self.full_size_kernel_weight if self.full_size else self.kernel_weight
+        G_M, G_N, B = mean_products[:3] + kernel_weight * mean_products[3:] + self._signatures
+        return G_M, G_N, B
 
     def _solve(self) -> None:
         if self._prior_job is not None:  # a running job for other endpoints gives up now, not at the next read
@@ -350,7 +381,7 @@ class CombinedMapSolver(CurveMapSolver):
         if self.prior_weight <= 0:
             return C
         size = min(NO17Settings().k, self.k)
-        if len(self.curves) < self.full_size_curves:
+        if not self.full_size:
             return C[:size, :size].copy()
         if not self.damps_high_frequencies:
             return C

@@ -71,6 +71,16 @@ class CurveTerm:
         )
 
 
+def cross_products(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
+    """``[X^T X, Y^T Y, Y^T X]`` (3 x k x k) for factors ``X`` (on M) and ``Y`` (on N) with the same rows."""
+    k = X.shape[1]
+    products = np.empty((3, k, k))
+    np.matmul(X.T, X, out=products[0])
+    np.matmul(Y.T, Y, out=products[1])
+    np.matmul(Y.T, X, out=products[2])
+    return products
+
+
 class CurveMapSolver:
     """Built once per shape pair; each curve edit returns the new ``C_MN`` and ``C_NM``.
 
@@ -91,6 +101,8 @@ class CurveMapSolver:
     Without one, the solver starts its own single thread when first needed and stops it on :meth:`close`
     (or at the end of a ``with`` block); an executor handed in is left to its owner.
     """
+
+    PRODUCTS = 3  # k x k products per curve (:meth:`_products`) that the solver keeps summed
 
     def __init__(
         self,
@@ -113,7 +125,7 @@ class CurveMapSolver:
         scale = max(self.basis_M.evals[-1], self.basis_N.evals[-1], 1e-12)
         self.lam_M, self.lam_N = self.basis_M.evals / scale, self.basis_N.evals / scale
         self.curves: dict[str, CurveTerm] = {}
-        self._sums = np.zeros((3, k, k))  # sum over curves of weight * _products(curve)
+        self._sums = np.zeros((self.PRODUCTS, k, k))  # sum over curves of weight * _products(curve)
         self._removed_weight = 0.0  # subtracted from _sums since they were last summed exactly
         self._next_number = 1  # of the next automatic id, c<number>
         self._C_MN, self._C_NM = np.zeros((k, k)), np.zeros((k, k))
@@ -216,13 +228,8 @@ class CurveMapSolver:
         return CurveTerm(_compact(path_M, len(self.vertices_M)), _compact(path_N, len(self.vertices_N)), float(weight))
 
     def _products(self, term: CurveTerm) -> np.ndarray:
-        """The curve's ``[X^T X, Y^T Y, Y^T X]`` (3 x k x k) for its :meth:`_factors` ``(X, Y)``."""
-        X, Y = self._factors(term)
-        products = np.empty((3, self.k, self.k))
-        np.matmul(X.T, X, out=products[0])
-        np.matmul(Y.T, Y, out=products[1])
-        np.matmul(Y.T, X, out=products[2])
-        return products
+        """The curve's :func:`cross_products` (``PRODUCTS`` x k x k) of its :meth:`_factors`."""
+        return cross_products(*self._factors(term))
 
     def _factors(self, term: CurveTerm) -> tuple[np.ndarray, np.ndarray]:
         """``(X, Y)``, each side's :meth:`_side_factor`; the source's from :data:`SOURCE_FACTORS` when there."""
@@ -245,10 +252,19 @@ class CurveMapSolver:
         return ()
 
     # -- solving ----------------------------------------------------------------------------------------
+    @property
+    def commutativity_weight(self) -> float:
+        """The ``alpha`` the maps are solved with now."""
+        return self.alpha
+
     def normal_equations(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(G_M, G_N, B)`` summed over curves with normalised weights (B: rows N, columns M)."""
         total = sum(term.weight for term in self.curves.values()) or 1.0
-        G_M, G_N, B = self._sums / total
+        return self._weighted(self._sums / total)
+
+    def _weighted(self, mean_products: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(G_M, G_N, B)`` from the curves' mean :meth:`_products` (a subclass weighs its terms here)."""
+        G_M, G_N, B = mean_products
         return G_M, G_N, B
 
     def _solve(self) -> None:
@@ -263,7 +279,8 @@ class CurveMapSolver:
             executor = self._solve_executor(B.size)
             started = time.perf_counter()
             priors = self._priors()
-            C_MN, C_NM = solve_both(G_N, G_M, B, self.lam_N, self.lam_M, self.alpha, priors=priors, executor=executor)
+            C_MN, C_NM = solve_both(G_N, G_M, B, self.lam_N, self.lam_M, self.commutativity_weight, priors=priors,
+                                    executor=executor)
             self._C_MN, self._C_NM = self._sized(C_MN), self._sized(C_NM)
             self._stale, self.last_solve_ms = set(), _ms_since(started)
 
@@ -300,7 +317,7 @@ class CurveMapSolver:
     def _solve_one(self, G: np.ndarray, B: np.ndarray, lam_rows: np.ndarray, lam_cols: np.ndarray,
                    prior: Prior | None) -> np.ndarray:  # fmt: skip
         started = time.perf_counter()
-        C = solve_columns(G, B, lam_rows, lam_cols, self.alpha, prior=prior)
+        C = solve_columns(G, B, lam_rows, lam_cols, self.commutativity_weight, prior=prior)
         self.last_solve_ms = _ms_since(started)
         return C
 
@@ -324,7 +341,8 @@ class CurveMapSolver:
         """E(C_MN) up to the constant sum_l w~_l ||PhiBar_l||^2 / s (so it may be negative)."""
         _, G_N, B = self.normal_equations()
         D = (self.lam_N[:, None] - self.lam_M[None, :]) ** 2
-        return float(self.alpha * np.sum(D * C_MN**2) + np.sum(C_MN * (G_N @ C_MN)) - 2 * np.sum(C_MN * B))
+        commutativity = self.commutativity_weight * np.sum(D * C_MN**2)
+        return float(commutativity + np.sum(C_MN * (G_N @ C_MN)) - 2 * np.sum(C_MN * B))
 
     # -- lifetime ---------------------------------------------------------------------------------------
     def close(self) -> None:

@@ -68,7 +68,7 @@ def time_update(loaded: LoadedPair, curves, k: int, repeats: int, executor: Exec
     previous = build_solver(loaded, curves[:-1], k, executor)
     solver = build_solver(loaded, curves, k, executor)
     G_M, G_N, B = solver.normal_equations()
-    lam_M, lam_N, alpha = solver.lam_M, solver.lam_N, solver.alpha
+    lam_M, lam_N, alpha = solver.lam_M, solver.lam_N, solver.commutativity_weight
     exact = (solver.C_MN, solver.C_NM)
 
     def ours():
