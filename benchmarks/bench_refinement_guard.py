@@ -3,14 +3,15 @@
 on every pair of the reproduce suite (``FULL_PAIRS``: FAUST, FAUST-5k, TOSCA within and across classes,
 cat -> lion), with 2 and 10 traced curves drawn as ``curvefm reproduce`` draws them (``CurvePool``, seed 0).
 
-Each row starts from the default method's (``combined``) functional maps at k = 120 and records the mean
-geodesic error / sqrt(area) of the start (the ``nearest-neighbor`` converter, defaults: the maps the guard
-compares with), of each refiner's returned map, and of the map the refiner produced before the guard chose
-(``refined``), source -> target / target -> source on the ground truth (dense, or across TOSCA classes the shared
-landmarks the curves do not end at, as ``curvefm reproduce`` scores them), which map was kept and why, the
-intrinsic figures, and the converter's seconds (guard included). A *regression* is a row where a refiner's returned
-map is worse than its start by more than 1% (relative, on the mean of both directions); a *missed gain* is one where
-the guard returned the start although the refined map was better by more than 1%. Prints one JSON object (``--out``
+Each row starts from the default method's (``combined``) functional maps at k = 120 and records the mean geodesic
+error / sqrt(area) of the start (the ``nearest-neighbor`` converter, defaults: the maps the guard compares with), of
+each refiner's returned map (the refined one, ZoomOut stopped at a smaller size, or the start), and of the map the
+refiner produced before the guard chose (``refined``), source -> target / target -> source on the ground truth
+(dense, or across TOSCA classes the shared landmarks the curves do not end at, as ``curvefm reproduce`` scores
+them), which map was kept and why, the intrinsic figures, and the converter's seconds (guard included). A
+*regression* is a row where a refiner's returned map is worse than its start by more than 1% (relative, on the mean
+of both directions); a *missed gain* is one where the guard returned the start or an earlier stage although the
+whole refinement's map was better than that by more than 1%. Prints one JSON object (``--out``
 also writes it); docs/results/refinement_guard.json is its output.
 
     nice python benchmarks/bench_refinement_guard.py [--counts 2 10] [--seeds 0] [--pairs faust tosca-cross]
@@ -28,6 +29,7 @@ import json
 import os
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -55,14 +57,21 @@ def errors(result: MatchResult, truth) -> dict:
 
 
 def recording(plugin):
-    """The converter ``plugin`` keeping what its ``run`` returned (before the guard chose) in ``box["maps"]``."""
+    """The converter ``plugin`` keeping the maps of its whole refinement (what ``run`` returns, the first of its
+    ``stages``) in ``box["maps"]``, before the guard chose."""
     box = {}
 
     def run(*args, **kwargs):
         box["maps"] = plugin.run(*args, **kwargs)
         return box["maps"]
 
-    return dataclasses.replace(plugin, run=run), box
+    def stages(*args, **kwargs):
+        for number, (label, maps) in enumerate(plugin.stages(*args, **kwargs)):
+            if number == 0:
+                box["maps"] = maps
+            yield label, maps
+
+    return dataclasses.replace(plugin, run=run, stages=stages if plugin.stages else None), box
 
 
 def refine(loaded: LoadedPair, fmaps, paths, truth, name: str, maps_out: dict) -> dict:
@@ -139,7 +148,7 @@ def summarise(rows: list[dict]) -> dict:
             }
             if mean_error(row, name) > (1 + REGRESSION) * before:
                 regressions.append(entry)
-            if row[name]["kept"] == "initial" and row[name]["refined"]["mean"] < (1 - REGRESSION) * before:
+            if row[name]["kept"] != "refined" and entry["refined"] < (1 - REGRESSION) * entry["returned"]:
                 missed.append(entry)
     return {
         "rows": len(rows),
@@ -147,7 +156,7 @@ def summarise(rows: list[dict]) -> dict:
         "regression_list": regressions,
         "missed_gains": len(missed),
         "missed_gain_list": missed,
-        "kept_initial": {name: sum(row[name]["kept"] == "initial" for row in rows) for name in REFINERS},
+        "kept": {name: dict(Counter(row[name]["kept"] for row in rows)) for name in REFINERS},
         "mean_error": {key: round(float(np.mean([mean_error(row, key) for row in rows])), 5) for key in MAPS},
     }
 

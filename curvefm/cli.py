@@ -53,7 +53,7 @@ def cmd_match(args) -> int:
     quality.write_text(json.dumps(result.summary(), indent=2))
     print(quality)
     if result.kept != "converted":
-        print(f"kept the {result.kept} maps: {result.reason}", file=sys.stderr)
+        print(f"refinement: {result.reason}", file=sys.stderr)
     return 0
 
 

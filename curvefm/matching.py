@@ -45,7 +45,8 @@ class MatchResult:
     """Intrinsic figures (:mod:`curvefm.pointwise.quality`): ``{"converted": ...}``, and for a refining
     converter also ``"initial"`` (the nearest-neighbour maps it started from) and ``"refined"``."""
     kept: str = "converted"
-    """``"refined"`` or ``"initial"`` for a refining converter (which maps ``maps`` are), else ``"converted"``."""
+    """For a refining converter which maps ``maps`` are: ``"refined"``, ``"stopped"`` (the refinement stopped at
+    an earlier stage) or ``"initial"``; else ``"converted"``."""
     reason: str = ""
 
     def summary(self) -> dict:
@@ -93,10 +94,13 @@ def convert(
     store has them; else the converter computes them.
 
     A refining converter's maps are returned only if no intrinsic figure got worse than the maps the user gets
-    without refinement, the ``nearest-neighbor`` converter's with its defaults (:func:`curvefm.pointwise.compare`);
-    otherwise those maps are, and ``reason`` names the figures that got worse."""
+    without refinement, the ``nearest-neighbor`` converter's with its defaults (:func:`curvefm.pointwise.compare`).
+    Otherwise the first of the converter's earlier stages (``ConverterPlugin.stages``: ZoomOut stopped at a smaller
+    size) that made none worse is, or, failing that, the initial maps; ``reason`` names the figures that got
+    worse and ``quality["refined"]`` holds the figures of the whole refinement."""
     paths = tuple(paths)
-    maps = converter.convert(pair, fmaps, params, progress, paths)
+    stages = converter.convert_in_stages(pair, fmaps, params, progress, paths)
+    _, maps = next(stages)
     quality = measure(pair, maps, paths)
     if not converter.refines:
         return MatchResult(pair, fmaps, maps, method, paths, {"converted": quality.as_dict()})
@@ -105,11 +109,18 @@ def convert(
     start_quality = measure(pair, start, paths)
     worse = compare(quality, start_quality)
     figures = {"initial": start_quality.as_dict(), "refined": quality.as_dict()}
-    if worse:
-        reason = f"'{converter.name}' made the map worse ({'; '.join(worse)}): the initial maps are returned"
-        return MatchResult(pair, fmaps, start, method, paths, figures, "initial", reason)
-    reason = f"'{converter.name}' made no intrinsic figure worse than the initial maps"
-    return MatchResult(pair, fmaps, maps, method, paths, figures, "refined", reason)
+    if not worse:
+        reason = f"'{converter.name}' made no intrinsic figure worse than the initial maps"
+        return MatchResult(pair, fmaps, maps, method, paths, figures, "refined", reason)
+    worse_text = f"'{converter.name}' made the map worse ({'; '.join(worse)})"
+    for label, earlier in stages:
+        earlier_quality = measure(pair, earlier, paths)
+        if not compare(earlier_quality, start_quality):
+            figures["stopped"] = {"at": label} | earlier_quality.as_dict()
+            reason = f"{worse_text}; stopped at {label} it made no figure worse: those maps are returned"
+            return MatchResult(pair, fmaps, earlier, method, paths, figures, "stopped", reason)
+    reason = f"{worse_text}: the initial maps are returned"
+    return MatchResult(pair, fmaps, start, method, paths, figures, "initial", reason)
 
 
 def match(

@@ -26,7 +26,7 @@ Parameters are parsed once, here (:func:`load`, or :meth:`Plugin.parse_params` o
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from functools import cache
 from importlib.metadata import EntryPoint, entry_points
@@ -99,19 +99,27 @@ class ConverterPlugin(Plugin[P]):
     refines: bool = True
     """Whether ``run`` refines the nearest-neighbour maps (then :func:`curvefm.matching.convert` keeps them
     only where refinement made no intrinsic quality figure worse)."""
+    stages: Callable[..., Iterator[tuple[str, PointwiseMaps]]] | None = None
+    """Optional, with ``run``'s arguments: ``(label, maps)`` with ``run``'s maps first, then the refinement
+    stopped earlier and earlier, each computed only when asked for; the guard returns the first stage that made no
+    intrinsic figure worse."""
 
-    def convert(
+    def convert_in_stages(
         self,
         pair: ShapePair,
         maps: FunctionalMaps,
         params: P,
         progress: Progress,
         curves: Sequence[tuple[np.ndarray, np.ndarray]] = (),
-    ) -> PointwiseMaps:
-        """``run``, with the user's curves where the converter takes them."""
-        if self.takes_curves:
-            return self.run(pair, maps, params, progress, curves=tuple(curves))
-        return self.run(pair, maps, params, progress)
+    ) -> Iterator[tuple[str, PointwiseMaps]]:
+        """``stages`` where the converter has them, else ``run``'s maps as the one stage; with the user's curves
+        where the converter takes them. The first stage is always ``run``'s maps."""
+        convert = self.run if self.stages is None else self.stages
+        arguments = {"curves": tuple(curves)} if self.takes_curves else {}
+        if self.stages is None:
+            yield "", convert(pair, maps, params, progress, **arguments)
+        else:
+            yield from convert(pair, maps, params, progress, **arguments)
 
 
 @dataclass(frozen=True)

@@ -16,6 +16,7 @@ the low frequencies only. On FAUST 000 -> 011 with 10 curves, 120 -> 200 reached
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import Literal
 
 import numpy as np
@@ -60,7 +61,13 @@ class ZoomOutParams(SampledRefinementParams):
         return self
 
 
-def zoomout(
+STAGE_STRIDE = 10
+"""Every this many basis functions below ``k_final`` ZoomOut offers its maps, stopped there, as an earlier stage for
+the guard (:func:`curvefm.matching.convert`) to fall back to when the whole refinement makes an intrinsic figure
+worse (README, "Refinement keeps the user's curves and never returns a worse map")."""
+
+
+def zoomout_stages(
     maps: PointwiseMaps,
     basis_M: Basis,
     basis_N: Basis,
@@ -68,37 +75,66 @@ def zoomout(
     samples: tuple[np.ndarray, np.ndarray] | None = None,
     progress: Progress = no_progress,
     pins: CurvePins | None = None,
-) -> PointwiseMaps:
-    """ZoomOut from pointwise maps. ``samples`` is ``(ids_M, ids_N)`` for the fast variant, else None; ``maps``
-    hold one entry per sample then (:func:`~curvefm.pointwise.initial_maps` with the samples), else per vertex.
-    ``pins`` fix the partners of the curves' vertices after every conversion."""
+) -> Iterator[tuple[str, PointwiseMaps]]:
+    """ZoomOut from pointwise maps: ``("k = k_final", maps)``, then, each only when asked for, the maps stopped at
+    every ``STAGE_STRIDE``-th size below, largest first. ``samples`` is ``(ids_M, ids_N)`` for the fast variant,
+    else None; ``maps`` hold one entry per sample then (:func:`~curvefm.pointwise.initial_maps` with the samples),
+    else per vertex. ``pins`` fix the partners of the curves' vertices after every conversion.
+
+    Iterating on every vertex, an earlier stage is the maps that iteration produced; on samples, it costs one
+    conversion of every vertex with the maps fitted at that size, as the last iteration does."""
     ids_M, ids_N = samples if samples is not None else (None, None)
     rows_M, rows_N = VertexRows(basis_M, ids_M), VertexRows(basis_N, ids_N)
     pins = pins or no_pins(basis_M.n_vertices, basis_N.n_vertices)
     p_NM, p_MN = pins.pin_NM(maps.p2p_NM, rows_N.subset), pins.pin_MN(maps.p2p_MN, rows_M.subset)
     sizes = list(range(params.k_init, params.k_final, params.step)) + [params.k_final]
+    earlier = []  # (k, stage): the maps at k, or the fitted maps to convert every vertex with
     for i, k in enumerate(sizes):
         progress(i / len(sizes), f"ZoomOut k = {k} (up to {params.k_final})")
         C_MN, C_NM = fit_fmap(p_NM, rows_N, rows_M, k), fit_fmap(p_MN, rows_M, rows_N, k)
-        if i == len(sizes) - 1 and samples is not None:
+        last = i == len(sizes) - 1
+        if last and samples is not None:
             rows_M, rows_N = VertexRows(basis_M), VertexRows(basis_N)
-        both = params.embedding == "both"
-        p_NM = pins.pin_NM(match_rows(C_MN, rows_N, rows_M, params.search, C_NM if both else None), rows_N.subset)
-        p_MN = pins.pin_MN(match_rows(C_NM, rows_M, rows_N, params.search, C_MN if both else None), rows_M.subset)
+        p_NM, p_MN = _converted(C_MN, C_NM, rows_M, rows_N, params, pins)
+        if not last and (params.k_final - k) % STAGE_STRIDE == 0:
+            earlier.append((k, (C_MN, C_NM) if samples is not None else PointwiseMaps(p2p_NM=p_NM, p2p_MN=p_MN)))
     progress(1.0, f"ZoomOut finished at k = {params.k_final}")
-    return PointwiseMaps(p2p_NM=p_NM, p2p_MN=p_MN)
+    yield f"k = {params.k_final}", PointwiseMaps(p2p_NM=p_NM, p2p_MN=p_MN)
+    every_M, every_N = VertexRows(basis_M), VertexRows(basis_N)
+    for k, stage in reversed(earlier):
+        if isinstance(stage, PointwiseMaps):
+            yield f"k = {k}", stage
+        else:
+            p_NM, p_MN = _converted(*stage, every_M, every_N, params, pins)
+            yield f"k = {k}", PointwiseMaps(p2p_NM=p_NM, p2p_MN=p_MN)
 
 
-def convert_zoomout(
+def _converted(C_MN, C_NM, rows_M: VertexRows, rows_N: VertexRows, params: ZoomOutParams, pins: CurvePins):
+    """Both pointwise maps (on the rows given) from the fitted maps, with the curves pinned."""
+    both = params.embedding == "both"
+    p_NM = pins.pin_NM(match_rows(C_MN, rows_N, rows_M, params.search, C_NM if both else None), rows_N.subset)
+    p_MN = pins.pin_MN(match_rows(C_NM, rows_M, rows_N, params.search, C_MN if both else None), rows_M.subset)
+    return p_NM, p_MN
+
+
+def convert_zoomout_stages(
     pair: ShapePair, fmaps: FunctionalMaps, params: ZoomOutParams, progress: Progress = no_progress, curves=()
-) -> PointwiseMaps:
+) -> Iterator[tuple[str, PointwiseMaps]]:
+    """:func:`zoomout_stages` from the ``nearest-neighbor`` maps of ``fmaps``, with the user's curves pinned."""
     progress(0.0, "choosing the vertices to iterate on")
     samples = refinement_samples(pair.mesh_M, pair.mesh_N, params.samples, params.dense_up_to)
     progress(0.05, "initial maps (nearest neighbours)")
     maps = initial_maps(pair, fmaps, params.search, samples)
     basis_M, basis_N = bases_with(pair, params.k_final, scaled(progress, 0.1, 0.2))
     pins = CurvePins.from_curves(pair.mesh_M, pair.mesh_N, curves)
-    return zoomout(maps, basis_M, basis_N, params, samples, scaled(progress, 0.25, 1.0), pins)
+    yield from zoomout_stages(maps, basis_M, basis_N, params, samples, scaled(progress, 0.25, 1.0), pins)
+
+
+def convert_zoomout(
+    pair: ShapePair, fmaps: FunctionalMaps, params: ZoomOutParams, progress: Progress = no_progress, curves=()
+) -> PointwiseMaps:
+    """ZoomOut's maps at ``k_final`` (the first of :func:`convert_zoomout_stages`)."""
+    return next(convert_zoomout_stages(pair, fmaps, params, progress, curves))[1]
 
 
 def zoomout_basis_size(params: ZoomOutParams) -> int:
@@ -113,4 +149,5 @@ ZOOMOUT = ConverterPlugin(
     run=convert_zoomout,
     basis_size=zoomout_basis_size,
     takes_curves=True,
+    stages=convert_zoomout_stages,
 )

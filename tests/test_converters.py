@@ -19,9 +19,16 @@ from curvefm.errors import CurvefmError
 from curvefm.evaluation import evaluate_map, ground_truth_curves, ground_truth_for, score
 from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K, DEFAULT_SAMPLES, FunctionalMaps
 from curvefm.geometry import load_mesh
-from curvefm.matching import MatchResult, match
+from curvefm.matching import MatchResult, convert, match
 from curvefm.plugins.rhm import ANCHOR_RADIUS, RhmParams, prepare_shape, reversible_harmonic_maps
-from curvefm.pointwise import AUTO_SAMPLES, CurvePins, closest_points, edge_stretch, refinement_samples
+from curvefm.pointwise import (
+    AUTO_SAMPLES,
+    CurvePins,
+    PointwiseMaps,
+    closest_points,
+    edge_stretch,
+    refinement_samples,
+)
 from curvefm.progress import Cancelled, no_progress
 from curvefm.session import CurveRecord, CurveSpec, SessionRecord
 from curvefm.store import Store
@@ -182,6 +189,51 @@ def test_zoomout_computes_a_larger_basis_than_the_sessions(faust):
     error = refined_error(faust, "zoomout", params, small, fmaps, lambda f, m: messages.append(m))
     assert any("computing a 60-function basis (the session's has 40)" in m for m in messages)
     assert error < faust.baseline
+
+
+@pytest.mark.parametrize("iterate_on", [{}, {"samples": 600}], ids=["every vertex", "samples"])
+def test_zoomout_stages_are_zoomout_stopped_at_smaller_sizes(faust, iterate_on):
+    pair, fmaps, paths = faust.result.pair, faust.result.fmaps, faust.result.paths
+    params = {"k_init": 20, "k_final": 40, "step": 5} | iterate_on
+    plugin, parsed = registry.load("converter", "zoomout", params)
+    stages = list(plugin.convert_in_stages(pair, fmaps, parsed, no_progress, paths))
+    assert [label for label, _ in stages] == ["k = 40", "k = 30", "k = 20"]
+    for (label, maps), k_final in zip(stages, (40, 30, 20), strict=True):
+        _, stopped = registry.load("converter", "zoomout", params | {"k_final": k_final})
+        _, alone = next(plugin.convert_in_stages(pair, fmaps, stopped, no_progress, paths))
+        assert np.array_equal(maps.p2p_MN, alone.p2p_MN) and np.array_equal(maps.p2p_NM, alone.p2p_NM), label
+
+
+def staged_converter(*stages: str) -> registry.ConverterPlugin:
+    """A refining converter whose stages, most refined first, are the ``nearest-neighbor`` maps (``"start"``) or
+    maps that send every vertex to vertex 0 (``"collapsed"``, worse on every intrinsic figure)."""
+
+    def run_stages(pair, fmaps, params, progress):
+        for i, kind in enumerate(stages):
+            if kind == "start":
+                yield f"stage {i}", registry.load("converter", "nearest-neighbor", None)[0].run(pair, fmaps, params)
+            else:
+                n_M, n_N = pair.mesh_M.n_vertices, pair.mesh_N.n_vertices
+                yield f"stage {i}", PointwiseMaps(p2p_NM=np.zeros(n_N, int), p2p_MN=np.zeros(n_M, int))
+
+    def run(pair, fmaps, params, progress):
+        return next(run_stages(pair, fmaps, params, progress))[1]
+
+    nearest = registry.get("converter", "nearest-neighbor")
+    return registry.ConverterPlugin(name="staged", description="test stages", Params=nearest.Params, run=run,
+                                    stages=run_stages)  # fmt: skip
+
+
+def test_the_guard_returns_the_first_earlier_stage_that_makes_no_figure_worse(faust):
+    converter = staged_converter("collapsed", "collapsed", "start", "collapsed")
+    result = convert(faust.result.pair, faust.result.fmaps, converter, converter.parse_params(None))
+    assert result.kept == "stopped" and "stopped at stage 2" in result.reason and "coverage" in result.reason
+    assert result.quality["stopped"]["at"] == "stage 2"
+    assert result.quality["stopped"]["coverage"] == result.quality["initial"]["coverage"]
+    assert result.quality["refined"]["coverage"] < 0.01  # the whole refinement's figures, as reported
+    collapsed_only = staged_converter("collapsed", "collapsed")
+    result = convert(faust.result.pair, faust.result.fmaps, collapsed_only, collapsed_only.parse_params(None))
+    assert result.kept == "initial" and set(result.quality) == {"initial", "refined"}
 
 
 def faust_session(faust: Case, store: Store) -> SessionRecord:

@@ -48,7 +48,7 @@ def refine(data_dir: str, session: dict, converter: str = "nearest-neighbor", pa
     same maps as ``p2p_target_to_source.npy`` / ``p2p_source_to_target.npy``, both functional maps, all four in
     ``maps.mat`` (MATLAB), ``target_textured.obj`` and ``target_textured.zip`` (OBJ + MTL + texture image).
     The result carries the maps' intrinsic quality figures and, for a refining converter, which maps were kept
-    (``kept``: ``refined`` or ``initial``) and why (``reason``); see :func:`curvefm.matching.convert`.
+    (``kept``: ``refined``, ``stopped`` or ``initial``) and why (``reason``); see :func:`curvefm.matching.convert`.
     """
     with running_job() as job:
         record = SessionRecord.model_validate(session)

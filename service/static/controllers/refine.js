@@ -19,7 +19,7 @@ export async function refine() {
     setRefineJob(job.id);
     showRefineJob();
     const done = await waitForJob(job.id, (update) => row.update(update));
-    row.finish(`finished in ${(done.ended_at - done.started_at).toFixed(1)} s`);
+    row.finish(`finished in ${(done.ended_at - done.started_at).toFixed(1)} s${guardVerdict(done.result)}`);
     await showRefinement(done);
     setMap("pointwise");
     showMapChoice();
@@ -32,6 +32,11 @@ export async function refine() {
     showRefineJob();
     enableRefine(Boolean(state.session?.curves.length));
   }
+}
+
+/** What the guard did when it did not return the whole refinement (it made an intrinsic figure worse). */
+function guardVerdict(result) {
+  return result.kept === "initial" || result.kept === "stopped" ? `: ${result.reason}` : "";
 }
 
 /** A finished refinement's downloads and pointwise map (marked stale once the session's revision passed it). */
