@@ -114,6 +114,7 @@ def convert(
         return MatchResult(pair, fmaps, maps, method, paths, figures, "refined", reason)
     worse_text = f"'{converter.name}' made the map worse ({'; '.join(worse)})"
     for label, earlier in stages:
+        progress(1.0, f"{worse_text}; checking it stopped at {label}")  # also where a cancelled job stops
         earlier_quality = measure(pair, earlier, paths)
         if not compare(earlier_quality, start_quality):
             figures["stopped"] = {"at": label} | earlier_quality.as_dict()

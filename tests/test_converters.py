@@ -226,7 +226,10 @@ def staged_converter(*stages: str) -> registry.ConverterPlugin:
 
 def test_the_guard_returns_the_first_earlier_stage_that_makes_no_figure_worse(faust):
     converter = staged_converter("collapsed", "collapsed", "start", "collapsed")
-    result = convert(faust.result.pair, faust.result.fmaps, converter, converter.parse_params(None))
+    messages = []
+    result = convert(faust.result.pair, faust.result.fmaps, converter, converter.parse_params(None),
+                     lambda _, message: messages.append(message))  # fmt: skip
+    assert [m.rsplit(" ", 2)[-2:] for m in messages if "checking" in m] == [["stage", "1"], ["stage", "2"]]
     assert result.kept == "stopped" and "stopped at stage 2" in result.reason and "coverage" in result.reason
     assert result.quality["stopped"]["at"] == "stage 2"
     assert result.quality["stopped"]["coverage"] == result.quality["initial"]["coverage"]
