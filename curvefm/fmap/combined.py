@@ -91,8 +91,8 @@ FULL_SIZE_KERNEL_WEIGHT = 300.0
 whole map is handed out, and its higher frequencies, which the weights above were swept for at the prior's size,
 are determined by the curves. Chosen by a sweep at 20 curves on `curvefm reproduce`'s suite (README, "Weights of
 the full-size map"): mean error 0.0100 / 0.0153 / 0.0114 / 0.0208 / 0.0469 -> 0.0088 / 0.0143 / 0.0108 / 0.0199 /
-0.0464 on FAUST / FAUST-5k / TOSCA / cat -> lion / TOSCA across classes; alpha 10-50 and kernel weights 300-1000
-all lie within 3% of it."""
+0.0464 on FAUST / FAUST-5k / TOSCA / cat -> lion / TOSCA across classes; within 4% of the sweep's best on every
+dataset, as only 30 / 1000 also was."""
 PRIOR_DELAY_S = 1.0
 """A live session's prior is computed once it has had no new curve for this long: in the browser benchmark, priors
 computed beside back-to-back clicks took click-to-texture p95 at 28k vertices from 79 to 146-164 ms (computed after
