@@ -21,10 +21,9 @@ import itertools
 import json
 
 import numpy as np
-from common import HELD_OUT_PAIRS, machine, shared_data
+from common import add_pair_arguments, chosen_pairs, machine, shared_data
 
 from curvefm import registry
-from curvefm.evaluation.reproduce.datasets import DATASETS, FULL_PAIRS
 from curvefm.evaluation.reproduce.scoring import LoadedPair
 from curvefm.fmap import DEFAULT_K, FULL_SIZE_CURVES, Hints
 from curvefm.progress import no_progress
@@ -47,8 +46,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--alphas", type=float, nargs="+", default=[10.0, 30.0, 100.0])
     parser.add_argument("--kernel-weights", type=float, nargs="+", default=[100.0, 300.0, 1000.0])
-    parser.add_argument("--pairs", choices=("suite", "held-out"), default="suite")
-    parser.add_argument("--datasets", nargs="+", default=list(DATASETS), choices=list(DATASETS))
+    add_pair_arguments(parser)
     args = parser.parse_args()
     limit_blas_threads()
     settings = {"no17": {}} | {
@@ -56,7 +54,7 @@ def main() -> None:
         for alpha, weight in itertools.product(args.alphas, args.kernel_weights)
     }
     data, store, rows = shared_data(), Store(), []
-    for pair in (p for p in (FULL_PAIRS if args.pairs == "suite" else HELD_OUT_PAIRS) if p.dataset in args.datasets):
+    for pair in chosen_pairs(args):
         loaded = LoadedPair.load(data, pair, DEFAULT_K, store)
         if loaded.pool.max_curves >= FULL_SIZE_CURVES:
             rows.extend(run(loaded, seed, settings) for seed in range(SEEDS))

@@ -26,10 +26,9 @@ import json
 import math
 
 import numpy as np
-from common import HELD_OUT_PAIRS, machine, shared_data
+from common import add_pair_arguments, chosen_pairs, machine, shared_data
 
 from curvefm import registry
-from curvefm.evaluation.reproduce.datasets import DATASETS, FULL_PAIRS
 from curvefm.evaluation.reproduce.scoring import LoadedPair
 from curvefm.fmap import DEFAULT_K, CombinedMapSolver, Hints, landmark_distortion, spectral_mismatch
 from curvefm.runtime import limit_blas_threads
@@ -66,12 +65,11 @@ def run(loaded: LoadedPair, seed: int, gammas: list[float]) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--gammas", type=float, nargs="+", default=[0.0, 0.25, 0.5, 0.75, 1.0])
-    parser.add_argument("--pairs", choices=("suite", "held-out"), default="suite")
-    parser.add_argument("--datasets", nargs="+", default=list(DATASETS), choices=list(DATASETS))
+    add_pair_arguments(parser)
     args = parser.parse_args()
     limit_blas_threads()
     data, store, rows = shared_data(), Store(), []
-    for pair in (p for p in (FULL_PAIRS if args.pairs == "suite" else HELD_OUT_PAIRS) if p.dataset in args.datasets):
+    for pair in chosen_pairs(args):
         loaded = LoadedPair.load(data, pair, DEFAULT_K, store)
         if loaded.pool.max_curves >= CURVES:
             rows.extend(run(loaded, seed, args.gammas) for seed in range(SEEDS))

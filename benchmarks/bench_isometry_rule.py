@@ -39,10 +39,9 @@ import json
 from collections import defaultdict
 
 import numpy as np
-from common import HELD_OUT_PAIRS, machine, shared_data
+from common import add_pair_arguments, chosen_pairs, machine, shared_data
 
 from curvefm import registry
-from curvefm.evaluation.reproduce.datasets import DATASETS, FULL_PAIRS
 from curvefm.evaluation.reproduce.scoring import LoadedPair
 from curvefm.fmap import DEFAULT_K, Hints, curve_endpoints, landmark_distortion
 from curvefm.progress import no_progress
@@ -112,13 +111,12 @@ def cells(rows: list[dict]) -> list[dict]:
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--counts", type=int, nargs="+", default=[1, 2, 5, 10, 20])
-    parser.add_argument("--datasets", nargs="+", default=list(DATASETS), choices=list(DATASETS))
-    parser.add_argument("--pairs", choices=("suite", "held-out"), default="suite")
+    add_pair_arguments(parser)
     args = parser.parse_args()
     limit_blas_threads()
     data, store = shared_data(), Store()
     rows = []
-    for pair in (p for p in (FULL_PAIRS if args.pairs == "suite" else HELD_OUT_PAIRS) if p.dataset in args.datasets):
+    for pair in chosen_pairs(args):
         loaded = LoadedPair.load(data, pair, DEFAULT_K, store)
         for count in (c for c in args.counts if c <= loaded.pool.max_curves):
             rows.extend(run(loaded, count, seed) for seed in range(SEEDS))

@@ -1,5 +1,6 @@
 """Shared helpers for the benchmarks: data location, cached bases, timing."""
 
+import argparse
 import itertools
 import os
 import platform
@@ -16,7 +17,7 @@ import httpx
 from curvefm.access import UserStore
 from curvefm.errors import Conflict
 from curvefm.evaluation import ground_truth_for
-from curvefm.evaluation.reproduce.datasets import Pair
+from curvefm.evaluation.reproduce.datasets import DATASETS, FULL_PAIRS, Pair
 from curvefm.geometry import load_mesh
 from curvefm.spectral import ShapePair
 from curvefm.store import Store
@@ -36,6 +37,17 @@ HELD_OUT_PAIRS = (  # pairs the reproduce suite does not hold, to check rules ch
     Pair("tosca-cross", "tosca/michael0.off", "tosca/gorilla5.off"),
     Pair("tosca-cross", "tosca/victoria0.off", "tosca/david1.off"),
 )
+
+
+def add_pair_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--pairs suite|held-out`` (the reproduce suite's pairs or :data:`HELD_OUT_PAIRS`) and ``--datasets``."""
+    parser.add_argument("--pairs", choices=("suite", "held-out"), default="suite")
+    parser.add_argument("--datasets", nargs="+", default=list(DATASETS), choices=list(DATASETS))
+
+
+def chosen_pairs(args: argparse.Namespace) -> list[Pair]:
+    """The pairs :func:`add_pair_arguments`'s options select."""
+    return [p for p in (FULL_PAIRS if args.pairs == "suite" else HELD_OUT_PAIRS) if p.dataset in args.datasets]
 
 
 def shared_data() -> Path:

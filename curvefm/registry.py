@@ -114,12 +114,11 @@ class ConverterPlugin(Plugin[P]):
     ) -> Iterator[tuple[str, PointwiseMaps]]:
         """``stages`` where the converter has them, else ``run``'s maps as the one stage; with the user's curves
         where the converter takes them. The first stage is always ``run``'s maps."""
-        convert = self.run if self.stages is None else self.stages
         arguments = {"curves": tuple(curves)} if self.takes_curves else {}
         if self.stages is None:
-            yield "", convert(pair, maps, params, progress, **arguments)
+            yield "", self.run(pair, maps, params, progress, **arguments)
         else:
-            yield from convert(pair, maps, params, progress, **arguments)
+            yield from self.stages(pair, maps, params, progress, **arguments)
 
 
 @dataclass(frozen=True)
