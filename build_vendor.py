@@ -18,10 +18,21 @@ from setuptools.command.build_py import build_py
 ROOT = Path(__file__).resolve().parent
 VENDOR_PACKAGE_DIR = ("curvefm", "service", "vendor")
 VENDOR_FILES = {
-    "three": ["LICENSE", "package.json", "build/three.module.js", "build/three.core.js",
-              "examples/jsm/controls/OrbitControls.js"],
-    "swagger-ui-dist": ["LICENSE", "NOTICE", "package.json", "swagger-ui-bundle.js", "swagger-ui.css",
-                        "favicon-32x32.png"],
+    "three": [
+        "LICENSE",
+        "package.json",
+        "build/three.module.js",
+        "build/three.core.js",
+        "examples/jsm/controls/OrbitControls.js",
+    ],
+    "swagger-ui-dist": [
+        "LICENSE",
+        "NOTICE",
+        "package.json",
+        "swagger-ui-bundle.js",
+        "swagger-ui.css",
+        "favicon-32x32.png",
+    ],
     "redoc": ["LICENSE", "package.json", "bundles/redoc.standalone.js"],
 }
 """Per npm package, the files the pages load (and the licence they come under)."""

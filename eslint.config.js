@@ -1,11 +1,11 @@
-// ESLint (flat config) for the web UI's ES modules in service/static: run by scripts/test.sh.
+// ESLint (flat config) for the web UI's ES modules in src/curvefm/service/static: run by scripts/test.sh.
 import js from "@eslint/js";
 import globals from "globals";
 
 export default [
   { ignores: ["node_modules/"] },
   {
-    files: ["service/static/**/*.js"],
+    files: ["src/curvefm/service/static/**/*.js"],
     ...js.configs.recommended,
     languageOptions: { ecmaVersion: "latest", sourceType: "module", globals: globals.browser },
     rules: {

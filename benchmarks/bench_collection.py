@@ -19,7 +19,7 @@ Starts a private ``redis-server`` on a free port (or uses ``$CURVEFM_REDIS_URL``
   (``GET .../members/{a}/to/{b}``) against the ground truth, next to the worse of its two direct maps
   (a -> template, template -> b).
 
-Usage: ``python benchmarks/bench_collection.py [--members 19] [--curves 10] [--converter zoomout] [--k 120]
+Usage: ``python -m benchmarks.bench_collection [--members 19] [--curves 10] [--converter zoomout] [--k 120]
 [--pairs 5] [--no-nearest] [--data DIR]``. Prints JSON.
 """
 
@@ -39,8 +39,8 @@ from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
 import numpy as np
-from common import machine, shared_data, start_server
 
+from benchmarks.common import machine, shared_data, start_server
 from curvefm.client import Client
 from curvefm.evaluation import evaluate_map, ground_truth_curves, identity_truth
 from curvefm.geometry import Mesh, load_mesh
@@ -125,8 +125,10 @@ def make_collection(client: Client, paths: list[Path], meshes: list[Mesh], curve
     """Upload the shapes, create the collection (the template curves as explicit paths) and wait for every
     basis: (collection, member id per member index, bases wall time, whether every basis was already stored)."""
     template, *members = (client.upload(path) for path in paths)
-    specs = [{"name": f"gt{n}", "waypoints": file_ids(meshes[0], path_T), "explicit": True}
-             for n, (path_T, _) in enumerate(curves[0], 1)]  # fmt: skip
+    specs = [
+        {"name": f"gt{n}", "waypoints": file_ids(meshes[0], path_T), "explicit": True}
+        for n, (path_T, _) in enumerate(curves[0], 1)
+    ]
     start = time.perf_counter()
     collection = client.collection(template, curves=specs, members=members, k=k, name="faust-bench")
     cached = all(m["basis_job"] is None for m in collection.info["members"])
@@ -147,8 +149,11 @@ def answer_curves(collection, member_ids: list[str], meshes: list[Mesh], curves:
 
 
 def spread(values: list[float]) -> dict:
-    return {"mean": round(float(np.mean(values)), 5), "median": round(float(np.median(values)), 5),
-            "max": round(float(np.max(values)), 5)}  # fmt: skip
+    return {
+        "mean": round(float(np.mean(values)), 5),
+        "median": round(float(np.median(values)), 5),
+        "max": round(float(np.max(values)), 5),
+    }
 
 
 def batch_run(collection, converter: str, member_ids: list[str], meshes: list[Mesh], pairs, scratch: Path) -> dict:
@@ -160,10 +165,12 @@ def batch_run(collection, converter: str, member_ids: list[str], meshes: list[Me
     archive = np.load(collection.archive(run["id"], scratch / f"{converter}.npz"))
     template, members = meshes[0], dict(zip(member_ids, meshes[1:], strict=True))
     errors = {
-        m: {"template_to_member": error(archive[f"{m}/map_template_to_member"], template, mesh),
-            "member_to_template": error(archive[f"{m}/map_member_to_template"], mesh, template)}
+        m: {
+            "template_to_member": error(archive[f"{m}/map_template_to_member"], template, mesh),
+            "member_to_template": error(archive[f"{m}/map_member_to_template"], mesh, template),
+        }
         for m, mesh in members.items()
-    }  # fmt: skip
+    }
     composed = []
     for a, b in pairs:
         p2p, _ = collection.composed(run["id"], a, b)
@@ -205,8 +212,9 @@ def benchmark(args, data: Path) -> dict:
     paths = faust_shapes(args.members)
     meshes = [load_mesh(path) for path in paths]
     curves = [ground_truth_curves(meshes[0], mesh, identity_truth(meshes[0], mesh), args.curves) for mesh in meshes[1:]]
-    converters = [args.converter] + ([] if args.no_nearest or args.converter == "nearest-neighbor" else
-                                     ["nearest-neighbor"])  # fmt: skip
+    converters = [args.converter] + (
+        [] if args.no_nearest or args.converter == "nearest-neighbor" else ["nearest-neighbor"]
+    )
     logs = data / "bench-logs"
     logs.mkdir(parents=True, exist_ok=True)
     with ExitStack() as stack:
@@ -228,7 +236,7 @@ def benchmark(args, data: Path) -> dict:
         "answers": {
             "wall_s": round(answers_s, 1),
             "per_curve_ms": round(1e3 * answers_s / len(member_ids) / args.curves, 1),
-        },  # fmt: skip
+        },
         "error": "mean geodesic error / sqrt(area of the map's target), FAUST identity ground truth",
         "runs": runs,
         "omp_num_threads": os.environ.get("OMP_NUM_THREADS"),

@@ -11,9 +11,9 @@ each also as CPU time (``*_cpu_ms``), which a busy machine disturbs far less tha
 second core ``ours_both_ms`` approaches ``ours_both_cpu_ms / 2``, without one it exceeds ``ours_both_cpu_ms``;
 
 and the error of both maps against ``np.linalg.solve`` in float64 (max |C - C_ref| / max |C_ref|). Methods
-are interleaved in every repetition. Budget (docs/DESIGN.md): both directions at k = 120 in <= 10 ms.
+are interleaved in every repetition. Budget (docs/performance.md): both directions at k = 120 in <= 10 ms.
 
-Usage: ``python benchmarks/bench_column_solve.py [--repeat N] [--k 30 60 120 200]``; prints JSON. Bases are
+Usage: ``python -m benchmarks.bench_column_solve [--repeat N] [--k 30 60 120 200]``; prints JSON. Bases are
 cached in /tmp/curvefm-bench-columns (about 30 s each to compute the first time).
 """
 
@@ -31,10 +31,11 @@ from concurrent.futures import ThreadPoolExecutor  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
-from common import machine, shared_data  # noqa: E402
 from scipy.linalg import lapack  # noqa: E402
 
-from curvefm.fmap import column_diagonals, restrict, solve_both, solve_columns
+from benchmarks.common import machine, shared_data  # noqa: E402
+from curvefm.fmap import restrict, solve_both
+from curvefm.fmap.column_solve import column_diagonals, solve_columns
 from curvefm.geometry import load_mesh, shortest_path
 from curvefm.registry import get  # noqa: E402
 from curvefm.runtime import limit_blas_threads

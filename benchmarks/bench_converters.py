@@ -13,7 +13,7 @@ every vertex (``dense_up_to`` above the size) and with its default, which at tha
 only: on every vertex of the 110k pair it took about 30 s an iteration (two factorisations of that size), so
 about an hour for the iterations it needs.
 
-    python benchmarks/bench_converters.py [--repeat 1] [--variants] [--scan-level 2] [--no-faust-and-cat]
+    python -m benchmarks.bench_converters [--repeat 1] [--variants] [--scan-level 2] [--no-faust-and-cat]
 """
 
 from __future__ import annotations
@@ -26,9 +26,9 @@ import sys
 import time
 
 import numpy as np
-from bench_scan import PAIR, subdivided
-from common import bench_store, machine, shared_data
 
+from benchmarks.bench_scan import PAIR, subdivided
+from benchmarks.common import bench_store, machine, shared_data
 from curvefm import registry
 from curvefm.evaluation import GroundTruth, evaluate_map, ground_truth_curves, ground_truth_for, score
 from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K, DEFAULT_SAMPLES
@@ -101,10 +101,19 @@ def session_record(store: Store, result: MatchResult, curves) -> dict:
         spec = CurveSpec(source=ids_M, target=ids_N, explicit=True)
         records.append(CurveRecord(id=f"c{i}", spec=spec, tracer="geodesic", path_source=ids_M, path_target=ids_N))
     return SessionRecord(
-        id="bench", source=store.put_mesh(mesh_M), target=store.put_mesh(mesh_N), k=DEFAULT_K, alpha=DEFAULT_ALPHA,
-        samples=DEFAULT_SAMPLES, tracer="geodesic", basis_plugin="laplace-beltrami",
-        basis_params={"laplacian": "cotangent"}, curves=records, created_at=time.time(), updated_at=time.time(),
-    ).model_dump()  # fmt: skip
+        id="bench",
+        source=store.put_mesh(mesh_M),
+        target=store.put_mesh(mesh_N),
+        k=DEFAULT_K,
+        alpha=DEFAULT_ALPHA,
+        samples=DEFAULT_SAMPLES,
+        tracer="geodesic",
+        basis_plugin="laplace-beltrami",
+        basis_params={"laplacian": "cotangent"},
+        curves=records,
+        created_at=time.time(),
+        updated_at=time.time(),
+    ).model_dump()
 
 
 def run_worker_job(store: Store, result: MatchResult, curves, truth) -> dict:

@@ -14,8 +14,8 @@ edit's solve as a fixed term on the right-hand side and the diagonal, which cost
 import json
 
 import numpy as np
-from common import bench_store, machine, median_ms, shared_data
 
+from benchmarks.common import bench_store, machine, median_ms, shared_data
 from curvefm.fmap import CombinedMapSolver, CurveMapSolver, FunctionTransfer, conjugate_gradient_solve
 from curvefm.geometry import farthest_point_sampling, load_mesh, shortest_path
 from curvefm.runtime import limit_blas_threads
@@ -89,8 +89,19 @@ def main():
     bM, bN = store.ensure_basis(M, 200), store.ensure_basis(N, 200)
     paths = curve_paths(M, 10)
     updates = [update_latency(M, bM, N, bN, k, paths, energy) for energy in SOLVERS for k in (30, 60, 120, 200)]
-    print(json.dumps({"benchmark": "curve_update", "machine": machine(), "pair": "FAUST tr_reg_000 -> tr_reg_011",
-                      "curves": 10, "update_both_directions": updates, "transfer": transfer_latency(store)}, indent=1))
+    print(
+        json.dumps(
+            {
+                "benchmark": "curve_update",
+                "machine": machine(),
+                "pair": "FAUST tr_reg_000 -> tr_reg_011",
+                "curves": 10,
+                "update_both_directions": updates,
+                "transfer": transfer_latency(store),
+            },
+            indent=1,
+        )
+    )
 
 
 if __name__ == "__main__":

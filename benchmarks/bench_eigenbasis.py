@@ -1,6 +1,6 @@
 """Eigenbasis k = 120: ``curvefm.spectral.smallest_eigenpairs`` against the plain ``eigsh(L, k, M=A, sigma=-0.01)``.
 
-Budget (DESIGN.md): on a 30k-vertex mesh, <= 0.5x the plain call's time with the same eigenvalues (1e-6
+Budget (docs/performance.md): on a 30k-vertex mesh, <= 0.5x the plain call's time with the same eigenvalues (1e-6
 relative). Meshes: FAUST tr_reg_000 (6890 vertices) and TOSCA cat0 (27894), built as the basis plugin builds
 them (unit area, cotangent Laplacian, lumped mass). Configurations run interleaved, ``--repeats`` times each;
 times are medians of wall seconds. ``ours`` is the default (two slice processes from 15k vertices on);
@@ -8,7 +8,7 @@ times are medians of wall seconds. ``ours`` is the default (two slice processes 
 
 Eigenvalue differences are relative for lambda_1 .. lambda_k-1 and absolute for lambda_0 (which is 0).
 
-Usage: ``python benchmarks/bench_eigenbasis.py [--repeats N] [--k K]``; prints JSON. Data: $CURVEFM_SHARED_DATA
+Usage: ``python -m benchmarks.bench_eigenbasis [--repeats N] [--k K]``; prints JSON. Data: $CURVEFM_SHARED_DATA
 or ../shared/data next to the repository.
 """
 

@@ -12,7 +12,7 @@ through the job queue (reused from ``--data`` when given), then measures:
 Endpoints are seeded random vertex pairs (the same ids on both shapes: TOSCA's cat poses correspond by id),
 mostly far apart: long curves, the slow case for tracing. Prints JSON.
 
-Usage: ``python benchmarks/bench_http.py [--data DIR] [--curves N] [--sessions S] [--per-session M]``
+Usage: ``python -m benchmarks.bench_http [--data DIR] [--curves N] [--sessions S] [--per-session M]``
 """
 
 from __future__ import annotations
@@ -29,7 +29,8 @@ from pathlib import Path
 
 import httpx
 import numpy as np
-from common import shared_data, start_server
+
+from benchmarks.common import shared_data, start_server
 
 SHARED = shared_data()
 SHAPES = ("cat0.off", "cat1.off")

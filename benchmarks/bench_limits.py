@@ -4,10 +4,10 @@
   on ``--redis-url``, the local Redis by default);
 * ``http_ms``: median round trip of a cheap API request (``GET /jobs/<unknown id>``, a 404) to a server with
   no rate limit, the in-process one and the Redis one;
-* ``quota_admit_ms``: :meth:`Quotas.admit` for a user who owns ``--items`` shapes, sessions and job results
-  (measuring their sizes on disk and dropping what is gone, under the user's lock, with a fsync'ed write).
+* ``quota_admit_ms``: :meth:`Quotas.admit` of a job for a user who owns ``--items`` shapes and job results (the
+  counts are queries in a write transaction of the records' database).
 
-    python benchmarks/bench_limits.py [--calls 5000] [--items 100] [--redis-url redis://127.0.0.1:6379/0]
+    python -m benchmarks.bench_limits [--calls 5000] [--items 100] [--redis-url redis://127.0.0.1:6379/0]
 """
 
 from __future__ import annotations
@@ -22,21 +22,24 @@ import uuid
 from pathlib import Path
 
 import httpx
-from common import machine, median_ms, start_server
 
-from curvefm.access import Usage, User
-from curvefm.service.quotas import Quotas
+from benchmarks.common import machine, median_ms, start_server
+from curvefm.access import Users
+from curvefm.records import open_database
+from curvefm.records.jobs import JobRow, Jobs
+from curvefm.records.shapes import Shapes
+from curvefm.service.quotas import quotas
 from curvefm.service.ratelimit import MemoryBuckets, RedisBuckets
 from curvefm.service.settings import Settings
-from curvefm.session import SessionStore
-from curvefm.store import Store
-from curvefm.workers.factory import make_queue
 
 
 def percentiles_us(times_s: list[float]) -> dict:
     times = sorted(times_s)
-    return {"p50": round(1e6 * times[len(times) // 2], 1), "p99": round(1e6 * times[int(len(times) * 0.99)], 1),
-            "mean": round(1e6 * statistics.fmean(times), 1)}
+    return {
+        "p50": round(1e6 * times[len(times) // 2], 1),
+        "p99": round(1e6 * times[int(len(times) * 0.99)], 1),
+        "mean": round(1e6 * statistics.fmean(times), 1),
+    }
 
 
 async def rate_checks(buckets, calls: int) -> dict:
@@ -73,25 +76,21 @@ def http_ms(folder: Path, redis_url: str, calls: int) -> dict:
 
 
 def quota_admit_ms(folder: Path, items: int, repeat: int) -> float:
-    store = Store(folder)
-    usage, user = Usage(folder), User("bench", admin=False, created_at="")
+    """One admission of a job (the quotas counted by queries in a write transaction) for a user with ``items``
+    shapes and finished jobs with results."""
+    database = open_database(folder)
+    users, shapes, jobs = Users(database), Shapes(database), Jobs(database)
+    users.add("bench")
+    user = users.require("bench")
     for i in range(items):
-        (folder / "meshes").mkdir(exist_ok=True)
-        (folder / "meshes" / f"{i:064x}.npz").write_bytes(b"x" * 1000)
-        (folder / "sessions").mkdir(exist_ok=True)
-        (folder / "sessions" / f"s{i}.json").write_text("{}")
-        (folder / "results" / f"job{i}").mkdir(parents=True)
-        for name in ("a.txt", "b.npy", "c.obj"):
-            (folder / "results" / f"job{i}" / name).write_bytes(b"y" * 1000)
-    with usage.edit(user.name) as ids:
-        ids.update(shapes=[f"{i:064x}" for i in range(items)], sessions=[f"s{i}" for i in range(items)],
-                   results=[f"job{i}" for i in range(items)])
+        shapes.add(f"{i:064x}", 1000, user.id)
+        jobs.create(JobRow(id=f"job{i}", kind="refine", state="finished", owner="bench", result_bytes=3000))
     settings = Settings(data_dir=folder, quota_sessions=0, quota_jobs=0, quota_bytes=10**12)
-    quotas = Quotas(settings, usage, store, SessionStore(folder), make_queue(None, folder))
+    admitting = quotas(settings, database)
 
     def admit() -> None:
-        with quotas.admit(user, "jobs") as charge:
-            charge(uuid.uuid4().hex)  # a job that the queue does not know: dropped by the next admission
+        with admitting.admit(user, "jobs"):
+            pass
 
     return round(median_ms(admit, repeat), 3)
 

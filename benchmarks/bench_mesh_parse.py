@@ -6,9 +6,9 @@ imported what loading might need (numpy, open3d, trimesh); ``peak_bytes`` is the
 resident memory from just before the load to its peak during the load (``VmHWM`` after resetting it through
 ``/proc/self/clear_refs``: Linux only; ``ru_maxrss`` cannot be reset and still holds the imports' peak), so it
 counts every allocation (numpy, Python, C++), and ``peak_per_file_byte`` divides it by the file's size.
-``--code DIR`` loads with the ``curvefm`` package found in DIR instead (another checkout), to compare.
+``--code DIR`` loads with the ``curvefm`` package found in DIR/src or DIR instead (another checkout), to compare.
 
-Usage: ``python benchmarks/bench_mesh_parse.py [--subdivisions 5 6 7] [--code DIR]``; prints JSON.
+Usage: ``python -m benchmarks.bench_mesh_parse [--subdivisions 5 6 7] [--code DIR]``; prints JSON.
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ FORMATS = ["off", "obj", "ply_ascii", "ply_binary", "stl_binary", "stl_ascii", "
 
 CHILD = """
 import json, sys, time
-sys.path.insert(0, {code!r})
+sys.path[:0] = [{code!r} + '/src', {code!r}]  # a src/ layout checkout, or an older flat one
 import numpy, open3d, trimesh, curvefm
 from curvefm.geometry import load_mesh
 

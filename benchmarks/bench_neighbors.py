@@ -21,7 +21,7 @@ Methods for the first three: faiss ``IndexFlatL2``, blocked float32 matrix produ
 the queries and the time is extrapolated linearly (``extrapolated_from`` says how many it ran): the cost per
 query of a tree search does not depend on how many queries there are. Times are medians in seconds.
 
-    python benchmarks/bench_neighbors.py [--repeat 3] [--tree-queries 1000] [--sections spectral,zoomout,rhm,scan]
+    python -m benchmarks.bench_neighbors [--repeat 3] [--tree-queries 1000] [--sections spectral,zoomout,rhm,scan]
         [--scan-levels 1,2,3] [--recall-queries 2000] [--hnsw] [--conversion]
 """
 
@@ -34,10 +34,10 @@ import sys
 import time
 
 import numpy as np
-from bench_scan import subdivided
-from common import bench_store, machine, median_ms, shared_data
 from scipy.spatial import cKDTree
 
+from benchmarks.bench_scan import subdivided
+from benchmarks.common import bench_store, machine, median_ms, shared_data
 from curvefm.evaluation import GroundTruth, ground_truth_curves, ground_truth_for
 from curvefm.geometry import load_mesh
 from curvefm.matching import match

@@ -9,7 +9,7 @@ With ``--map-level L``, the pair subdivided L times is matched with 10 ground-tr
 defaults) once with the exact basis and once with the multires one; errors (mean geodesic / sqrt(area)) are
 measured on the original 6,890 vertices.
 
-Usage: ``python benchmarks/bench_scan.py [--levels 0,1,2] [--with-440k] [--map-level 2] [--k 120]``; prints
+Usage: ``python -m benchmarks.bench_scan [--levels 0,1,2] [--with-440k] [--map-level 2] [--k 120]``; prints
 JSON. The 440k level (three subdivisions) needs about 1.5 GB for our solvers, the plain call about 3 GB.
 """
 
@@ -26,9 +26,9 @@ import time
 import numpy as np
 import scipy.sparse as sp
 import trimesh
-from common import machine, shared_data
 from scipy.sparse.linalg import eigsh
 
+from benchmarks.common import machine, shared_data
 from curvefm import registry
 from curvefm.evaluation import GroundTruth, ground_truth_curves, score
 from curvefm.geometry import build_mesh, cotangent_laplacian, load_mesh
@@ -99,8 +99,9 @@ def bench_map(level: int, k: int) -> dict:
                 args = (L, mass, k) if method == "exact" else (L, mass, vertices, mesh.faces, k)
                 (evals, evecs), seconds = timed(lambda solve=solve, args=args: solve(*args))
                 basis_s += seconds
-                store.put_basis(store.put_mesh(mesh), Basis(np.maximum(evals, 0), evecs, mass), "laplace-beltrami",
-                                DEFAULT_PARAMS)  # fmt: skip
+                store.put_basis(
+                    store.put_mesh(mesh), Basis(np.maximum(evals, 0), evecs, mass), "laplace-beltrami", DEFAULT_PARAMS
+                )
             result, match_s = timed(lambda store=store: match(meshes[0], meshes[1], curves, store=store))
             errors = score(result, truth)
             out[method] = {

@@ -23,7 +23,7 @@ behind (more connections waiting), which pushed the server further behind; aioht
 people clicking in the UI; without it, the load of scripts editing curves through the API. The latencies are then
 those of the edit and its texture together.
 
-Usage: ``python benchmarks/bench_soak.py [--minutes 5] [--sessions 50] [--rate 2] [--pair faust|cat] [--texture]
+Usage: ``python -m benchmarks.bench_soak [--minutes 5] [--sessions 50] [--rate 2] [--pair faust|cat] [--texture]
 [--data DIR] [--log FILE]``
 """
 
@@ -42,7 +42,8 @@ from pathlib import Path
 
 import aiohttp
 import numpy as np
-from common import shared_data, start_server
+
+from benchmarks.common import scratch_database, shared_data, start_server
 
 PAIRS = {
     "faust": ("faust", "tr_reg_000.off", "tr_reg_001.off"),
@@ -139,8 +140,9 @@ class Load:
         async with client.request(method, url, **kwargs) as response:
             return response.status, await response.read()
 
-    async def session_loop(self, client: aiohttp.ClientSession, session: Session, start: float, end: float,
-                           period: float) -> None:
+    async def session_loop(
+        self, client: aiohttp.ClientSession, session: Session, start: float, end: float, period: float
+    ) -> None:
         next_at = start + period * session.rng.random()  # sessions out of step, as people are
         while next_at < end:
             await asyncio.sleep(max(0.0, next_at - time.perf_counter()))
@@ -202,15 +204,21 @@ async def soak(url: str, headers: dict[str, str], server_pid: int, args) -> dict
         "edits_sent": sent,
         "edits_per_s": round(sent / elapsed, 1),
         "errors": sum(load.errors.values()),
-        "cpu_ms_per_edit": {"server": round(1e3 * cpu[0] / max(sent, 1), 2),
-                            "client": round(1e3 * cpu[1] / max(sent, 1), 2)},
+        "cpu_ms_per_edit": {
+            "server": round(1e3 * cpu[0] / max(sent, 1), 2),
+            "client": round(1e3 * cpu[1] / max(sent, 1), 2),
+        },
         "errors_by_kind": dict(load.errors),
         "latency": percentiles(edits),
         "add": percentiles(load.latencies["add"]),
         "remove": percentiles(load.latencies["remove"]),
         "from_schedule": percentiles(load.from_schedule),
-        "rss_mb": {"start": load.rss[0][1], "middle": middle[1], "end": load.rss[-1][1],
-                   "max": max(mb for _, mb in load.rss)},
+        "rss_mb": {
+            "start": load.rss[0][1],
+            "middle": middle[1],
+            "end": load.rss[-1][1],
+            "max": max(mb for _, mb in load.rss),
+        },
         "rss_series_s_mb": [[round(t), mb] for t, mb in load.rss],
     }
 
@@ -227,8 +235,15 @@ def main() -> None:
     parser.add_argument("--texture", action="store_true", help="fetch the carried texture after each edit, as the UI")
     parser.add_argument("--data", type=Path, help="data directory (kept; reuses bases); default: a temporary one")
     parser.add_argument("--log", type=Path, help="where the server's output goes (default: nowhere)")
+    parser.add_argument("--engine", choices=("sqlite", "postgresql"), default="sqlite", help="the records' database")
+    parser.add_argument("--postgres", default="postgresql://postgres@127.0.0.1:5432/test", help="server for a new one")
     args = parser.parse_args()
-    with tempfile.TemporaryDirectory(prefix="curvefm-soak-") as scratch:
+    with (
+        tempfile.TemporaryDirectory(prefix="curvefm-soak-") as scratch,
+        scratch_database(args.engine, args.postgres) as database_url,
+    ):
+        if args.engine == "postgresql":
+            os.environ["CURVEFM_DATABASE_URL"] = database_url  # the bench user's token and the server alike
         server, url, headers = start_server(args.data or Path(scratch), log=args.log)
         try:
             result = asyncio.run(soak(url, headers, server.pid, args))
@@ -244,6 +259,7 @@ def main() -> None:
         "rate_per_session": args.rate,
         "minutes": args.minutes,
         "texture_after_each_edit": args.texture,
+        "database": args.engine,
         **result,
         "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
         "date": date.today().isoformat(),

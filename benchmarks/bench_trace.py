@@ -1,6 +1,6 @@
 """Curve tracing on a 30k-vertex mesh (TOSCA cat0, 27894 vertices): median trace time of each tracer.
 
-Budget (docs/DESIGN.md): trace a curve on a 30k-vertex mesh in <= 30 ms. Two sets of seeded endpoint pairs:
+Budget (docs/performance.md): trace a curve on a 30k-vertex mesh in <= 30 ms. Two sets of seeded endpoint pairs:
 ``random`` (uniform over the mesh: mostly far apart, the worst case) and ``short`` (edge-path distance 5-25%
 of the bounding-box diagonal: what a person clicks for one feature curve). The anisotropic tracer's first
 call on a mesh builds its feature field and weighted graph (``build_s``); traces after that reuse them.
@@ -8,7 +8,7 @@ call on a mesh builds its feature field and weighted graph (``build_s``); traces
 ``--subdivide N`` traces on the mesh subdivided N times (``trimesh.remesh.subdivide``, generated at run time and
 never written): FAUST tr_reg_000 subdivided 3 times has 440,834 vertices, where the budget is 50 ms (issue 14).
 
-Usage: ``python benchmarks/bench_trace.py [MESH] [--subdivide N] [--pairs N] [--seed S]``; prints JSON.
+Usage: ``python -m benchmarks.bench_trace [MESH] [--subdivide N] [--pairs N] [--seed S]``; prints JSON.
 """
 
 from __future__ import annotations

@@ -32,7 +32,7 @@ the first request for the copy (which makes it).
 Endpoints are pairs of vertices visible on both shapes with the same id (TOSCA poses of one class, and FAUST
 registrations, correspond by id), sampled on a grid over the source canvas, at least 120 pixels apart. Prints JSON.
 
-Usage: ``python benchmarks/bench_ui_latency.py [--data DIR] [--curves N] [--pause S] [--large-curves M] [--no-large]
+Usage: ``python -m benchmarks.bench_ui_latency [--data DIR] [--curves N] [--pause S] [--large-curves M] [--no-large]
 [--scan-level L] [--transfer-levels L ...] [--transfer-reads N]``
 """
 
@@ -48,10 +48,11 @@ from pathlib import Path
 import httpx
 import numpy as np
 import trimesh
-from common import REPO, machine, shared_data, start_server
+
+from benchmarks.common import REPO, machine, shared_data, start_server
 
 sys.path.insert(0, str(REPO / "tests"))
-from ui_helpers import (  # noqa: E402  (shared with the browser tests)
+from support.ui import (  # noqa: E402  (shared with the browser tests: tests/support/ui.py)
     CHROMIUM,
     VIEWPORT,
     click_curve,
@@ -120,8 +121,9 @@ def percentile(values: list[float], q: float) -> float:
     return round(float(np.percentile(values, q)), 1)
 
 
-def measure_latency(browser, url: str, token: str, session_id: str, n_vertices: int, curves: int, pair: str,
-                    pause_s: float = 0.0) -> dict:  # fmt: skip
+def measure_latency(
+    browser, url: str, token: str, session_id: str, n_vertices: int, curves: int, pair: str, pause_s: float = 0.0
+) -> dict:
     page = browser.new_page(viewport=VIEWPORT)
     open_session(page, url, session_id, token, timeout_ms=120_000)
     pairs = endpoint_pairs(pickable_vertices(page), curves)
@@ -246,8 +248,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--data", default=os.environ.get("CURVEFM_BENCH_DATA", "/tmp/curvefm-bench"))
     parser.add_argument("--curves", type=int, default=20, help="0: no latency run (with --no-large: no browser)")
-    parser.add_argument("--pause", type=float, default=0.0,
-                        help="seconds between curves: from about 1.5, the landmark prior runs beside the next clicks")
+    parser.add_argument(
+        "--pause",
+        type=float,
+        default=0.0,
+        help="seconds between curves: from about 1.5, the landmark prior runs beside the next clicks",
+    )
     parser.add_argument("--large-curves", type=int, default=3)
     parser.add_argument("--no-large", action="store_true", help="skip the 50k-vertex responsiveness check")
     parser.add_argument("--scan-level", type=int, default=0, help="latency on FAUST subdivided this many times")

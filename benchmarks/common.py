@@ -1,53 +1,29 @@
-"""Shared helpers for the benchmarks: data location, cached bases, timing."""
+"""Shared helpers of the benchmarks and the experiments: data location, cached bases, the machine, timing, a server.
 
-import argparse
-import itertools
+Run both from the repository root as modules (``python -m benchmarks.bench_trace``, ``python -m experiments.alpha``),
+so that ``benchmarks`` and ``experiments`` are packages and this module is ``benchmarks.common``."""
+
+import contextlib
 import os
 import platform
+import secrets
 import socket
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
+from collections.abc import Iterator
 from datetime import date
 from pathlib import Path
 
 import httpx
 
-from curvefm.access import UserStore
+from curvefm.access import users_of
 from curvefm.errors import Conflict
-from curvefm.evaluation import ground_truth_for
-from curvefm.evaluation.reproduce.datasets import DATASETS, FULL_PAIRS, Pair
-from curvefm.geometry import load_mesh
-from curvefm.spectral import ShapePair
 from curvefm.store import Store
 
 REPO = Path(__file__).resolve().parents[1]
-HELD_OUT_PAIRS = (  # pairs the reproduce suite does not hold, to check rules chosen on it
-    Pair("faust", "faust/tr_reg_060.off", "faust/tr_reg_071.off"),
-    Pair("faust", "faust/tr_reg_080.off", "faust/tr_reg_091.off"),
-    Pair("faust", "faust/tr_reg_010.off", "faust/tr_reg_051.off"),
-    Pair("tosca", "tosca/dog0.off", "tosca/dog2.off"),
-    Pair("tosca", "tosca/horse0.off", "tosca/horse5.off"),
-    Pair("tosca", "tosca/gorilla1.off", "tosca/gorilla5.off"),
-    Pair("tosca", "tosca/michael0.off", "tosca/michael1.off"),
-    Pair("tosca-cross", "tosca/cat0.off", "tosca/dog0.off"),
-    Pair("tosca-cross", "tosca/horse0.off", "tosca/wolf0.off"),
-    Pair("tosca-cross", "tosca/dog2.off", "tosca/horse5.off"),
-    Pair("tosca-cross", "tosca/michael0.off", "tosca/gorilla5.off"),
-    Pair("tosca-cross", "tosca/victoria0.off", "tosca/david1.off"),
-)
-
-
-def add_pair_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--pairs suite|held-out`` (the reproduce suite's pairs or :data:`HELD_OUT_PAIRS`) and ``--datasets``."""
-    parser.add_argument("--pairs", choices=("suite", "held-out"), default="suite")
-    parser.add_argument("--datasets", nargs="+", default=list(DATASETS), choices=list(DATASETS))
-
-
-def chosen_pairs(args: argparse.Namespace) -> list[Pair]:
-    """The pairs :func:`add_pair_arguments`'s options select."""
-    return [p for p in (FULL_PAIRS if args.pairs == "suite" else HELD_OUT_PAIRS) if p.dataset in args.datasets]
 
 
 def shared_data() -> Path:
@@ -62,33 +38,13 @@ def bench_store() -> Store:
     return Store(os.environ.get("CURVEFM_BENCH_DATA", "/tmp/curvefm-bench"))
 
 
-def ground_truth_pair(source: str, target: str, k: int = 120):
-    """``(ShapePair, GroundTruth)`` for two meshes of the shared data folder (paths relative to it), with
-    bases of k functions from :func:`bench_store`."""
-    data, store = shared_data(), bench_store()
-    M, N = load_mesh(data / source), load_mesh(data / target)
-    truth = ground_truth_for(data / source, data / target, M, N)
-    return ShapePair(M, N, store.ensure_basis(M, k), store.ensure_basis(N, k)), truth
-
-
-def ground_truth_rows(pairs, counts, errors_for) -> list[dict]:
-    """``{"pair", "curves", "errors"}`` per pair and curve count, ``errors = errors_for(pair, truth, curves)`` for
-    ``curvefm evaluate``'s ground-truth curves (2n farthest points among the vertices with a known partner,
-    consecutive pairs joined); progress on stderr."""
-    from curvefm.evaluation import ground_truth_curves
-
-    rows = []
-    for (source, target), count in itertools.product(pairs, counts):
-        pair, truth = ground_truth_pair(source, target)
-        curves = ground_truth_curves(pair.mesh_M, pair.mesh_N, truth, count)
-        rows.append({"pair": f"{source} -> {target}", "curves": count, "errors": errors_for(pair, truth, curves)})
-        print(f"{source} -> {target}, {count} curves done", file=sys.stderr, flush=True)
-    return rows
-
-
 def machine() -> dict:
-    return {"date": date.today().isoformat(), "cpus": os.cpu_count(), "machine": platform.machine(),
-            "python": platform.python_version()}
+    return {
+        "date": date.today().isoformat(),
+        "cpus": os.cpu_count(),
+        "machine": platform.machine(),
+        "python": platform.python_version(),
+    }
 
 
 def median_ms(fn, repeat: int) -> float:
@@ -102,7 +58,7 @@ def median_ms(fn, repeat: int) -> float:
 
 def bench_token(data: Path) -> str:
     """A token of the user ``bench`` on the data directory (made, or rotated when it exists)."""
-    users = UserStore(data)
+    users = users_of(data)
     try:
         return users.add("bench")
     except Conflict:
@@ -136,3 +92,22 @@ def start_server(
             time.sleep(0.1)
     server.kill()
     raise SystemExit("the server did not start")
+
+
+@contextlib.contextmanager
+def scratch_database(engine: str, postgres: str) -> Iterator[str]:
+    """The URL of a new, empty records database: a SQLite file in a temporary folder, or a database
+    ``curvefm_bench_<random>`` made on the PostgreSQL server ``postgres`` and dropped afterwards."""
+    if engine == "sqlite":
+        with tempfile.TemporaryDirectory() as folder:
+            yield f"sqlite:///{folder}/curvefm.db"
+        return
+    import psycopg
+
+    name = f"curvefm_bench_{secrets.token_hex(6)}"
+    with psycopg.connect(postgres, autocommit=True) as admin:
+        admin.execute(f'CREATE DATABASE "{name}"')
+        try:
+            yield f"{postgres.rsplit('/', 1)[0].replace('postgresql://', 'postgresql+psycopg://', 1)}/{name}"
+        finally:
+            admin.execute(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')

@@ -1,40 +1,23 @@
-"""Fixtures shared by the test suite."""
+"""Fixtures shared by the whole suite (the folders' conftest.py add their own). Everything that is not a fixture
+(process, Redis and browser management, shapes, paths) lives in the ``support`` package."""
 
-import contextlib
 import os
 import shutil
-import signal
-import socket
-import subprocess
-import sys
-import time
 import uuid
 from pathlib import Path
-from typing import NoReturn
 
-import httpx
 import pytest
+from support import records as support_records
+from support.ci import unavailable
+from support.paths import shared_data_path
+from support.processes import Processes
+from support.records import Databases
+from support.redis_servers import REDIS_URL, delete_prefix
 
 from curvefm.runtime import limit_blas_threads
+from curvefm.store import default_data_dir
 
-REPO = Path(__file__).resolve().parents[1]
 limit_blas_threads()  # as the CLI does: the solver threads, not BLAS, use the cores
-
-
-def in_ci() -> bool:
-    return os.environ.get("CI", "").lower() not in ("", "0", "false")
-
-
-def unavailable(reason: str) -> NoReturn:
-    """End a test that lacks something it needs (the shared data, Redis, Chromium, a program): a skip on a
-    developer's machine, a failure with the reason under CI (``CI`` set), where nothing may be missing."""
-    if in_ci():
-        pytest.fail(f"{reason} [CI is set: a missing requirement fails the test]", pytrace=False)
-    pytest.skip(reason)
-
-
-def shared_data_path() -> Path:
-    return Path(os.environ.get("CURVEFM_SHARED_DATA", REPO.parent / "shared" / "data"))
 
 
 @pytest.fixture(scope="session")
@@ -49,9 +32,14 @@ def shared_data() -> Path:
 # ----------------------------------------------------------------------------------------------------------
 # Service tests: real Redis, real `python -m curvefm.service` / `python -m curvefm.workers` processes.
 
-API_COMMAND = ["python", "-m", "curvefm.service"]
-WORKER_COMMAND = ["python", "-m", "curvefm.workers"]
-REDIS_URL = os.environ.get("CURVEFM_TEST_REDIS_URL", "redis://127.0.0.1:6379/0")
+
+@pytest.fixture(scope="session")
+def node() -> str:
+    """Node.js, for the tests that run the web UI's modules outside a browser."""
+    path = shutil.which("node")
+    if path is None:
+        unavailable("Node.js is not installed (scripts/setup.sh needs it for the UI's packages)")
+    return path
 
 
 @pytest.fixture(scope="session")
@@ -69,189 +57,9 @@ def redis_url() -> str:
 def redis_prefix(redis_url: str):
     """A queue-name prefix of this test only; afterwards every Redis key of it (queues, registries, jobs,
     workers, our own keys) is deleted, and nothing else is touched."""
-    import redis
-
     prefix = f"cfmtest-{uuid.uuid4().hex[:10]}-"
     yield prefix
-    connection = redis.Redis.from_url(redis_url)
-    job_ids = [
-        key.decode().split(":")[2]
-        for key in connection.scan_iter("rq:job:*", count=1000)
-        if key.count(b":") == 2 and (connection.hget(key, "origin") or b"").decode().startswith(prefix)
-    ]
-    for pattern in [f"*{job_id}*" for job_id in job_ids] + [f"*{prefix}*"]:
-        for key in connection.scan_iter(pattern, count=1000):
-            connection.delete(key)
-    for registry in ("rq:workers", "rq:queues"):
-        for member in connection.smembers(registry):
-            if prefix.encode() in member:
-                connection.srem(registry, member)
-
-
-TEST_USER = "tester"
-"""The user every API fixture's client acts as (not an admin): made on the server's data directory before it starts."""
-
-
-def bearer(token: str) -> dict[str, str]:
-    return {"Authorization": f"Bearer {token}"}
-
-
-def add_user(data_dir: Path, name: str, admin: bool = False) -> str:
-    """Make a user on a data directory (the server sees it at once); a user of an earlier server on it gets a new
-    token. Returns the token."""
-    from curvefm.access import UserStore
-    from curvefm.errors import Conflict
-
-    users = UserStore(data_dir)
-    try:
-        return users.add(name, admin=admin)
-    except Conflict:
-        return users.rotate(name)
-
-
-class Api:
-    """A running API process and an HTTP client for it, authenticated as :data:`TEST_USER`."""
-
-    def __init__(self, process: subprocess.Popen, url: str, log: Path, data_dir: Path, token: str | None):
-        self.process, self.url, self.log, self.data_dir, self.token = process, url, log, data_dir, token
-        self.client = httpx.Client(base_url=url, timeout=120, headers=bearer(token) if token else None)
-
-    def client_for(self, name: str, admin: bool = False) -> httpx.Client:
-        """A client of another user, made now."""
-        return httpx.Client(base_url=self.url, timeout=120, headers=bearer(add_user(self.data_dir, name, admin)))
-
-    def upload(self, path: Path) -> str:
-        with open(path, "rb") as f:
-            response = self.client.post("/shapes", files={"file": (path.name, f)})
-        assert response.status_code in (200, 201), response.text
-        return response.json()["id"]
-
-    def demo_pair(self, folder: Path, k: int, suffix: str = ".off") -> tuple[list[str], str]:
-        """Upload the two generated demo shapes (4098 vertices, same ids), compute their bases and create a
-        session; return the shape ids and the session id."""
-        from curvefm.geometry import save_mesh
-        from curvefm.service.demo import demo_shapes
-
-        ids = []
-        for mesh in demo_shapes():
-            save_mesh(mesh, folder / f"{mesh.name}{suffix}")
-            ids.append(self.upload(folder / f"{mesh.name}{suffix}"))
-            job = self.client.post(f"/shapes/{ids[-1]}/bases", json={"k": k}).raise_for_status().json()
-            assert self.wait_job(job["id"])["state"] == "finished"
-        session = self.client.post("/sessions", json={"source": ids[0], "target": ids[1], "k": k})
-        return ids, session.raise_for_status().json()["id"]
-
-    def wait_job(self, job_id: str, timeout: float = 120, until=("finished", "failed", "canceled", "lost")) -> dict:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            info = self.client.get(f"/jobs/{job_id}").raise_for_status().json()
-            if info["state"] in until:
-                return info
-            time.sleep(0.1)
-        raise AssertionError(f"job {job_id} still {info['state']} after {timeout} s: {info}")
-
-
-class Processes:
-    """Starts service processes in their own process groups; kills every one of them at teardown."""
-
-    api_command, worker_command = API_COMMAND, WORKER_COMMAND
-
-    def __init__(self, folder: Path):
-        self.folder = folder
-        self.started: list[subprocess.Popen] = []
-        self.tokens: dict[tuple[Path, str], str] = {}  # one token per user and data directory, for replicas
-
-    def start(
-        self, args: list[str], name: str, env: dict[str, str] | None = None, cwd: Path | None = None
-    ) -> subprocess.Popen:
-        log = self.folder / f"{name}.log"
-        process = subprocess.Popen(
-            [sys.executable, *args[1:]] if args[0] == "python" else args,
-            env={**os.environ, **(env or {})},
-            cwd=cwd,
-            stdout=open(log, "ab"),  # noqa: SIM115  (the child holds it; closed when the process ends)
-            stderr=subprocess.STDOUT,
-        )
-        self.started.append(process)
-        return process
-
-    def api(
-        self, data_dir: Path, redis_url: str | None = None, env: dict[str, str] | None = None, args=(), user=TEST_USER
-    ) -> Api:
-        """An API process on ``data_dir``, with a client of ``user`` (None: no user is made, so the server makes
-        its local admin and prints the login URL)."""
-        port = free_port()
-        args = [*API_COMMAND, "--host", "127.0.0.1", "--port", str(port), "--data", str(data_dir), *args]
-        if redis_url:
-            args += ["--redis-url", redis_url]
-        name = f"api-{port}"
-        token = self.token(data_dir, user) if user else None
-        # tests drive a server far faster than a person does: no rate limit unless the test sets one
-        process = self.start(args, name, {"CURVEFM_RATE_LIMIT": "0", **(env or {})})
-        api = Api(process, f"http://127.0.0.1:{port}", self.folder / f"{name}.log", data_dir, token)
-        wait_until_healthy(api)
-        return api
-
-    def token(self, data_dir: Path, user: str) -> str:
-        """The token of ``user`` on ``data_dir``: the one given to an earlier API on it while it still works (two
-        processes serving one directory share the user), else a new one."""
-        from curvefm.access import UserStore
-
-        token = self.tokens.get((data_dir, user))
-        if token is None or UserStore(data_dir).authenticate(token) is None:
-            token = self.tokens[(data_dir, user)] = add_user(data_dir, user)
-        return token
-
-    def worker(self, redis_url: str, prefix: str, name: str) -> subprocess.Popen:
-        args = [*WORKER_COMMAND, "--redis-url", redis_url, "--name", f"{prefix}{name}"]
-        return self.start(args, f"worker-{name}", {"CURVEFM_QUEUE_PREFIX": prefix})
-
-    @staticmethod
-    def kill(process: subprocess.Popen) -> None:
-        """SIGKILL the process and all its descendants, as a crash of its machine would (an RQ work horse
-        runs in a process group of its own, so killing the worker's group alone would leave it running)."""
-        for pid in [*descendants(process.pid), process.pid]:
-            with contextlib.suppress(ProcessLookupError):
-                os.kill(pid, signal.SIGKILL)
-        process.wait(timeout=30)
-
-    def stop_all(self) -> None:
-        for process in self.started:
-            self.kill(process)
-
-
-def descendants(pid: int) -> list[int]:
-    children: dict[int, list[int]] = {}
-    for stat in Path("/proc").glob("[0-9]*/stat"):
-        with contextlib.suppress(OSError, IndexError, ValueError):
-            fields = stat.read_text().rsplit(")", 1)[1].split()
-            children.setdefault(int(fields[1]), []).append(int(stat.parent.name))
-    found, frontier = [], [pid]
-    while frontier:
-        frontier = [child for parent in frontier for child in children.get(parent, [])]
-        found += frontier
-    return found
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def wait_until_healthy(api: Api, timeout: float = 60) -> None:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if api.process.poll() is not None:
-            log = api.log.read_text()[-3000:]
-            raise AssertionError(f"the API exited with {api.process.returncode}:\n{log}")
-        try:
-            if api.client.get("/health", timeout=2).status_code == 200:
-                return
-        except httpx.TransportError:
-            pass
-        time.sleep(0.1)
-    raise AssertionError(f"the API did not answer within {timeout} s:\n{api.log.read_text()[-3000:]}")
+    delete_prefix(redis_url, prefix)
 
 
 @pytest.fixture
@@ -269,58 +77,10 @@ def module_processes(tmp_path_factory):
     runner.stop_all()
 
 
-class RedisServer:
-    """A redis-server of one test, on a free port (never the shared Redis, which other tests use): it can be
-    stopped, and restarted empty as docker-compose's Redis without persistence would be."""
-
-    def __init__(self, folder: Path, password: str | None = None):
-        self.folder, self.password, self.port = folder, password, free_port()
-        self.process: subprocess.Popen | None = None
-
-    def url(self, password: str | None = None) -> str:
-        """The URL with this server's password, or with ``password`` ("" for none)."""
-        password = self.password if password is None else password
-        return f"redis://{f':{password}@' if password else ''}127.0.0.1:{self.port}/0"
-
-    def start(self) -> None:
-        args = ["redis-server", "--port", str(self.port), "--bind", "127.0.0.1", "--save", "", "--appendonly", "no"]
-        args += ["--dir", str(self.folder)] + (["--requirepass", self.password] if self.password else [])
-        log = open(self.folder / f"redis-{self.port}.log", "ab")  # noqa: SIM115  (the child holds it)
-        self.process = subprocess.Popen(args, stdout=log, stderr=subprocess.STDOUT)
-        import redis
-
-        deadline = time.monotonic() + 20
-        while time.monotonic() < deadline:
-            try:
-                redis.Redis.from_url(self.url(), socket_connect_timeout=1).ping()
-                return
-            except redis.RedisError:
-                time.sleep(0.05)
-        raise AssertionError(f"redis-server on port {self.port} did not answer within 20 s")
-
-    def stop(self) -> None:
-        """SIGKILL: nothing is saved, as a crashed or recreated Redis container without persistence."""
-        if self.process is not None:
-            self.process.kill()
-            self.process.wait(timeout=30)
-            self.process = None
-
-
-@pytest.fixture
-def private_redis(tmp_path: Path):
-    """A password-protected redis-server of this test only (see :class:`RedisServer`)."""
-    if shutil.which("redis-server") is None:
-        unavailable("redis-server is not installed (scripts/setup.sh installs Debian's redis-server)")
-    server = RedisServer(tmp_path, password=f"pw-{uuid.uuid4().hex[:12]}")
-    server.start()
-    yield server
-    server.stop()
-
-
 @pytest.fixture(scope="module")
 def browser():
     """Headless Chromium (Playwright), one per test module."""
-    from ui_helpers import CHROMIUM, launch
+    from support.ui import CHROMIUM, launch
 
     if not CHROMIUM.is_file():
         unavailable(
@@ -333,3 +93,43 @@ def browser():
         browser = launch(playwright)
         yield browser
         browser.close()
+
+
+# ----------------------------------------------------------------------------------------------------------
+# The records' database: SQLite in each data directory by default. With CURVEFM_TEST_DATABASE=postgresql the
+# service and queue tests run on PostgreSQL (the server is CURVEFM_TEST_POSTGRES, default postgres@127.0.0.1:5432):
+# each data directory a module uses gets a database of its own, made on first use and dropped after the module.
+# The test process finds it by the data directory (curvefm.records.engine.database_url is patched); the API and
+# worker processes of a data directory get its CURVEFM_DATABASE_URL (support.processes), so replicas and workers of
+# one deployment share its database and two deployments never do.
+ON_DATABASE = ("service", "queue")
+DATABASE_ENGINE = "CURVEFM_TEST_DATABASE"
+
+
+@pytest.fixture(scope="module", autouse=True)
+def module_database(request):
+    """The engine of this module's records (``sqlite``, or ``postgresql`` as :data:`DATABASE_ENGINE` says for
+    the folders :data:`ON_DATABASE`)."""
+    engine = os.environ.get(DATABASE_ENGINE, "sqlite")
+    folder = Path(str(request.node.path)).parent.name
+    if engine == "sqlite" or folder not in ON_DATABASE:
+        yield "sqlite"
+        return
+    if engine != "postgresql":
+        pytest.fail(f"{DATABASE_ENGINE}={engine}: sqlite or postgresql", pytrace=False)
+    from curvefm.records import engine as records_engine
+
+    databases = support_records.current = Databases.connect()
+
+    def per_data_dir(data_dir=None, url=None) -> str:
+        chosen = url or os.environ.get(records_engine.URL_VARIABLE)
+        return chosen or databases.url(data_dir if data_dir is not None else default_data_dir())
+
+    try:
+        with pytest.MonkeyPatch.context() as patch:
+            patch.delenv(records_engine.URL_VARIABLE, raising=False)
+            patch.setattr(records_engine, "database_url", per_data_dir)
+            yield engine
+    finally:
+        support_records.current = None
+        databases.drop_all()

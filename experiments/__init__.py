@@ -1,0 +1,2 @@
+"""Tuning studies, each beside its JSON results. Run from the repository root: ``python -m experiments.NAME``
+(see docs/experiments/)."""

@@ -1,0 +1,118 @@
+"""The paper's Figures 10/11: accuracy against the number of curves, exact vs traced curves, and the
+descriptor baselines given the same information (curve endpoints as landmarks, or curves as functions), and the
+combined energy (curves, wave kernel signatures and kernel maps along the curves, the default)."""
+
+from __future__ import annotations
+
+import time
+from collections import defaultdict
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from curvefm import registry
+from curvefm.errors import CurvefmError
+from curvefm.evaluation.reproduce.datasets import DATASETS, Suite
+from curvefm.evaluation.reproduce.scoring import LoadedPair
+from curvefm.fmap import DEFAULT_K, Hints
+from curvefm.progress import Progress, no_progress
+from curvefm.store import Store
+
+
+@dataclass(frozen=True)
+class Variant:
+    key: str
+    method: str
+    label: str
+    exact: bool = False
+    params: dict[str, Any] = field(default_factory=dict)
+
+
+VARIANTS = (
+    Variant("curves-traced", "curves", "curves (ours), traced"),
+    Variant("curves-exact", "curves", "curves (ours), exact", exact=True),
+    Variant("combined-traced", "combined", "combined (ours, the default), traced"),
+    Variant("obcs12-wks", "obcs12", "OBCS12, descriptors alone (WKS)", params={"landmarks": False}),
+    Variant("obcs12", "obcs12", "OBCS12, endpoints as landmarks"),
+    Variant("no17", "no17", "NO17, endpoints as landmarks"),
+    Variant("no17-curves", "no17", "NO17, curves as functions", params={"inputs": "curves"}),
+)
+
+
+def run_accuracy(data: Path, suite: Suite, store: Store, progress: Progress = no_progress) -> dict[str, Any]:
+    """Every variant on every pair, curve count and seed; returns records and per-dataset summaries."""
+    records, skipped = [], []
+    tasks = len(suite.pairs) * len(suite.counts) * suite.seeds
+    done = 0
+    for pair in suite.pairs:
+        progress(done / tasks, f"{pair.name}: bases and ground truth")
+        loaded = LoadedPair.load(data, pair, DEFAULT_K, store)
+        for count in suite.counts:
+            if count > loaded.pool.max_curves:
+                skipped.append(f"{pair.name}: {count} curves (only {loaded.pool.max_curves} endpoint pairs)")
+                done += suite.seeds
+                continue
+            for seed in range(suite.seeds):
+                records.extend(run_task(loaded, count, seed))
+                done += 1
+                progress(done / tasks, f"{pair.name}: {count} curves, seed {seed}")
+    summary = summarise(records)
+    for record in records:  # the summary keeps the cumulative curves; the table keeps the figures per run
+        record.pop("curve", None)
+    return {"records": records, "skipped": skipped, "summary": summary}
+
+
+def run_task(loaded: LoadedPair, count: int, seed: int) -> list[dict[str, Any]]:
+    """All variants for one random subset of ``count`` curves."""
+    kinds = (False, True) if loaded.truth.dense else (False,)
+    curves = {exact: loaded.pool.curves(count, seed, exact) for exact in kinds}
+    out = []
+    for variant in VARIANTS:
+        if variant.exact not in curves:
+            continue
+        hints = Hints.from_curves(curves[variant.exact])
+        plugin, params = registry.load("method", variant.method, variant.params)
+        record = {
+            "dataset": loaded.pair.dataset,
+            "pair": loaded.pair.name,
+            "variant": variant.key,
+            "count": count,
+            "seed": seed,
+        }
+        start = time.perf_counter()
+        try:
+            maps = plugin.run(loaded.shapes, hints, params, no_progress)
+        except CurvefmError as exc:
+            out.append(record | {"failed": str(exc)})
+            continue
+        record["seconds"] = time.perf_counter() - start
+        errors = loaded.score(maps.C_NM, seed)
+        out.append(
+            record | {"mean": errors.mean, "mean_area": errors.mean_area, "auc": errors.auc, "curve": errors.curve}
+        )
+    return out
+
+
+def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
+    """Per dataset, variant and curve count: means over pairs and seeds of the error figures and curves."""
+    groups = defaultdict(list)
+    for r in records:
+        if "failed" not in r:
+            groups[(r["dataset"], r["variant"], r["count"])].append(r)
+    order = {v.key: i for i, v in enumerate(VARIANTS)}
+    datasets = list(DATASETS)
+    summary: dict[str, Any] = defaultdict(lambda: defaultdict(dict))
+    for (dataset, variant, count), rows in sorted(
+        groups.items(), key=lambda item: (datasets.index(item[0][0]), order[item[0][1]], item[0][2])
+    ):
+        summary[dataset][variant][str(count)] = {
+            "runs": len(rows),
+            "mean": float(np.mean([r["mean"] for r in rows])),
+            "mean_area": float(np.mean([r["mean_area"] for r in rows])),
+            "auc": float(np.mean([r["auc"] for r in rows])),
+            "seconds": float(np.mean([r["seconds"] for r in rows])),
+            "curve": [round(float(c), 5) for c in np.mean([r["curve"] for r in rows], axis=0)],
+        }
+    return {d: {v: dict(c) for v, c in vs.items()} for d, vs in summary.items()}

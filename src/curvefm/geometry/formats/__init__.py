@@ -1,0 +1,1 @@
+"""One module per mesh file format; :mod:`curvefm.geometry.mesh_io` picks one by suffix."""

@@ -1,0 +1,64 @@
+"""Pointwise maps: conversion from functional maps (spectral nearest neighbours), the helpers the refining
+converters share, the user's curves as constraints on them, intrinsic quality figures (no ground truth needed),
+high-dimensional neighbour search (exact or approximate), refinement on vertex samples, and geodesic
+embeddings for RHM.
+
+Building blocks (the MDS steps of :mod:`~curvefm.pointwise.geodesic_mds`, the search's block size) are imported
+from their modules; the search and sampling thresholds that the converters' parameters show stay exported.
+"""
+
+from curvefm.pointwise.conversion import (
+    PointwiseMaps,
+    fmap_from_pointwise,
+    pointwise_from_both,
+    pointwise_from_fmap,
+)
+from curvefm.pointwise.curve_pins import CurvePins, no_pins
+from curvefm.pointwise.geodesic_mds import (
+    closest_points,
+    geodesic_embedding,
+)
+from curvefm.pointwise.neighbors import (
+    APPROXIMATE_FROM_PAIRS,
+    Search,
+    nearest_neighbors,
+    uses_approximate,
+)
+from curvefm.pointwise.quality import MapQuality, compare, edge_stretch, measure
+from curvefm.pointwise.refinement import bases_with, initial_maps, unit_area
+from curvefm.pointwise.sampled import (
+    AUTO_SAMPLES,
+    DENSE_UP_TO,
+    VertexRows,
+    fit_fmap,
+    match_rows,
+    refinement_samples,
+)
+
+__all__ = [
+    "APPROXIMATE_FROM_PAIRS",
+    "AUTO_SAMPLES",
+    "DENSE_UP_TO",
+    "Search",
+    "VertexRows",
+    "CurvePins",
+    "MapQuality",
+    "PointwiseMaps",
+    "bases_with",
+    "closest_points",
+    "compare",
+    "edge_stretch",
+    "fit_fmap",
+    "fmap_from_pointwise",
+    "geodesic_embedding",
+    "initial_maps",
+    "match_rows",
+    "measure",
+    "nearest_neighbors",
+    "no_pins",
+    "pointwise_from_both",
+    "pointwise_from_fmap",
+    "refinement_samples",
+    "unit_area",
+    "uses_approximate",
+]

@@ -1,0 +1,70 @@
+"""Pointwise maps, and their conversion from functional maps by nearest neighbours in spectral embeddings.
+
+Direction convention: ``p2p_NM[j]`` is the vertex of M matched to vertex j of N (a map N -> M). The
+functional map ``C_MN`` (functions on M -> functions on N) yields ``p2p_NM`` (Ovsjanikov et al. 2012): the
+image of a delta at vertex x of M has coefficients ``C_MN Phi[x]``, which should match ``Psi[y]`` at its
+partner y.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from curvefm.pointwise.neighbors import nearest_neighbors
+from curvefm.spectral import Basis
+
+
+@dataclass(frozen=True)
+class PointwiseMaps:
+    p2p_NM: np.ndarray  # (n,) vertex of M for each vertex of N
+    p2p_MN: np.ndarray  # (m,) vertex of N for each vertex of M
+
+
+def pointwise_from_fmap(
+    C_MN: np.ndarray, basis_M: Basis, basis_N: Basis, search: str = "auto", rows: np.ndarray | None = None
+) -> np.ndarray:
+    """``p2p_NM`` from ``C_MN`` alone: for each y of N the x of M minimising ``|C_MN Phi[x] - Psi[y]|``.
+
+    With ``rows`` only those vertices of N are matched (the result has one entry per row)."""
+    k_N, k_M = C_MN.shape
+    queries = basis_N.evecs[:, :k_N] if rows is None else basis_N.evecs[rows, :k_N]
+    return nearest_neighbors(basis_M.evecs[:, :k_M] @ C_MN.T, queries, search)
+
+
+def pointwise_from_both(
+    C_MN: np.ndarray,
+    C_NM: np.ndarray,
+    basis_M: Basis,
+    basis_N: Basis,
+    search: str = "auto",
+    rows: np.ndarray | None = None,
+) -> np.ndarray:
+    """``p2p_NM`` using both maps: for each y of N the x of M minimising
+    ``|C_MN Phi[x] - Psi[y]|^2 + |Phi[x] - C_NM Psi[y]|^2``. With ``rows`` only those vertices of N are matched.
+
+    Measured on FAUST 000 -> 011 with 10 curves this lowers the error from 0.0315 to 0.0276 (by sqrt(area)),
+    and on cat -> lion it is as good or better; see docs/accuracy.md."""
+    k_N, k_M = C_MN.shape
+    Phi = basis_M.evecs[:, :k_M]
+    Psi = basis_N.evecs[:, :k_N] if rows is None else basis_N.evecs[rows, :k_N]
+    return nearest_neighbors(_beside(Phi, C_MN, mapped_first=True), _beside(Psi, C_NM, mapped_first=False), search)
+
+
+def _beside(E: np.ndarray, C: np.ndarray, mapped_first: bool) -> np.ndarray:
+    """``[E C^T, E]`` (or ``[E, E C^T]``) in float32, written in place: the search runs in float32 anyway, and at
+    scan resolution the float64 product, stacking and cast cost 2.5 times as long (440k vertices: 5.3 s vs 2.1 s)."""
+    E32 = E.astype(np.float32)
+    out = np.empty((len(E), C.shape[0] + E.shape[1]), dtype=np.float32)
+    split = C.shape[0] if mapped_first else E.shape[1]
+    mapped, plain = (out[:, :split], out[:, split:]) if mapped_first else (out[:, split:], out[:, :split])
+    np.matmul(E32, C.T.astype(np.float32), out=mapped)
+    plain[...] = E32
+    return out
+
+
+def fmap_from_pointwise(p2p_NM: np.ndarray, basis_M: Basis, basis_N: Basis, k_M: int, k_N: int) -> np.ndarray:
+    """``C_MN`` (k_N x k_M) induced by a pointwise map N -> M: ``Psi^+ Pi Phi`` with the mass-weighted
+    pseudo-inverse ``Psi^+ = Psi^T A_N``."""
+    return basis_N.evecs[:, :k_N].T @ (basis_N.mass[:, None] * basis_M.evecs[p2p_NM, :k_M])

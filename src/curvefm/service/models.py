@@ -1,0 +1,328 @@
+"""Request and response models of the HTTP API (they are its OpenAPI schema at ``/docs``).
+
+Vertex ids in requests and responses are **file** ids (0-based, as in the uploaded file), except in the
+binary mesh and transfer payloads, whose rows follow the mesh's internal vertex order, or the rows of a big
+shape's display copy (``file_ids`` in the mesh payload translates). The session models the API shares with the
+core (``SessionCreate``, ``SessionRecord``, ``CurveSpec``, ``CurveRecord``, ``MapSummary``) are defined in
+:mod:`curvefm.session`.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from curvefm.collection import CollectionRecord, MemberStatus
+from curvefm.fmap import DEFAULT_K
+from curvefm.morphometrics import SnappedPoint
+from curvefm.session import (
+    EXAMPLE_PATHS,
+    NAME_LENGTH,
+    SHARING_DESCRIPTION,
+    CurveRecord,
+    CurveWeight,
+    MapSummary,
+    Sharing,
+    SolveStatement,
+    VertexId,
+)
+from curvefm.workers.interface import JobState
+
+
+class FieldProblem(BaseModel):
+    field: str = Field(description="where in the request, e.g. body.k")
+    problem: str
+
+
+class ErrorBody(BaseModel):
+    error: str = Field(
+        description="invalid, unauthenticated, forbidden, not_found, conflict, too_large, too_many, internal, "
+        "unavailable or disk_full"
+    )
+    detail: str = Field(description="what was wrong and what to do")
+    limit: str | None = Field(
+        None, description="too_large and too_many: the setting (environment variable) of the limit reached"
+    )
+    available: list[str] | None = Field(None, description="installed plugins of the kind asked for")
+    fields: list[FieldProblem] | None = Field(None, description="each field that failed validation (422)")
+    error_id: str | None = Field(None, description="internal errors (500): the id the server log files it under")
+    revision: int | None = Field(
+        None, description="conflict with an If-Match revision (409): the record's current revision, to reload"
+    )
+
+
+class AuditEvent(BaseModel):
+    time: str = Field(description="UTC, ISO 8601 with milliseconds")
+    user: str = Field(description="who (a user name, or 'cli' for the command line)")
+    action: str = Field(description="what, e.g. session.share or user.add")
+    target: str = Field(description="to what: an id or a name")
+    detail: dict = Field(default_factory=dict)
+
+
+class BasisInfo(BaseModel):
+    plugin: str
+    k: int
+    params_key: str
+
+
+class ShapeInfo(BaseModel):
+    id: str = Field(description="content hash of the validated mesh")
+    name: str = Field(description="the uploaded file's name without suffix, or the name given at upload")
+    uploaded_at: float | None = Field(None, description="its first upload (UNIX seconds; none: not recorded yet)")
+    n_vertices: int = Field(description="vertices used by faces (internal ids 0..n_vertices-1)")
+    n_faces: int
+    n_file_vertices: int = Field(description="vertices in the file; file ids are 0..n_file_vertices-1")
+    has_uv: bool
+    uploaders: list[str] = Field(description="who uploaded it (they, and admins, may delete it)")
+    report: dict = Field(description="what validation changed or noticed")
+    bases: list[BasisInfo]
+
+
+class BasisRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    k: int = Field(DEFAULT_K, ge=1, description="number of basis functions")
+    plugin: str = "laplace-beltrami"
+    params: dict = Field(default_factory=dict, description="the basis plugin's parameters (GET /plugins)")
+
+
+class JobError(BaseModel):
+    kind: str = Field(
+        description="invalid, not_found, conflict, too_large (also: more memory than its worker's budget), internal, "
+        "disk_full, timeout (past its time limit, scaled to its meshes), killed (its process was killed, e.g. by the "
+        "kernel's OOM killer, while its worker lived on), worker_lost, or lost (the queue or the service forgot the "
+        "job: it restarted or lost its Redis; retry it)"
+    )
+    message: str = Field(description="one readable line")
+
+
+class JobInfoModel(BaseModel):
+    id: str
+    kind: str = Field(description="basis or refine")
+    state: JobState
+    progress: float = Field(description="0..1")
+    message: str
+    result: dict | None = None
+    links: dict[str, str] = Field(default_factory=dict, description="where to fetch what the job produced")
+    error: JobError | None = Field(None, description="why the job failed (when it failed)")
+    worker: str | None = None
+    created_at: float | None = None
+    started_at: float | None = None
+    ended_at: float | None = None
+    owner: str | None = Field(None, description="the user who started it (only they, or an admin, cancel it)")
+
+
+class SessionSummary(BaseModel):
+    id: str
+    name: str
+    owner: str
+    sharing: Sharing
+    source: str
+    target: str
+    source_name: str = Field(description="the source shape's name")
+    target_name: str = Field(description="the target shape's name")
+    collection: str | None = Field(description="the collection whose member this session is (none: its own)")
+    member: str | None = Field(description="its member id in that collection")
+    k: int
+    n_curves: int
+    revision: int
+    created_at: float
+    updated_at: float = Field(description="its last change (the list's order, newest first)")
+
+
+class CurveEdit(BaseModel):
+    curve: CurveRecord | None = Field(None, description="the stored curve with its traced paths (file ids)")
+    map: MapSummary
+
+
+class MarkupsImported(BaseModel):
+    """What ``POST /sessions/{id}/markups`` added, and where every point of the files was snapped."""
+
+    curves: list[CurveRecord] = Field(description="the curves added, in the files' order")
+    names: list[str] = Field(description="each added curve's name in the files (the markup's name or labels)")
+    map: MapSummary | None = Field(description="the maps after the last curve; null when nothing was added")
+    points: list[SnappedPoint]
+    unpaired: list[str] = Field(description="curves and landmarks only one of the two files has (left out)")
+
+
+class MapResponse(BaseModel):
+    revision: int
+    k: int = Field(
+        description="size of the maps handed out (solve.size): the session's k, or the combined energy's landmark "
+        "prior's min(50, k) below 20 curves (their higher frequencies are not yet determined); solve says why"
+    )
+    solve: SolveStatement = Field(description="the energy, weights and map size the maps were solved with, and why")
+    C_source_to_target: list[list[float]] = Field(description="C_MN: coefficients on M -> coefficients on N")
+    C_target_to_source: list[list[float]] = Field(description="C_NM")
+
+
+class PointsRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    vertices: list[VertexId] = Field(
+        min_length=1, description="file ids of the vertices asked for", examples=[EXAMPLE_PATHS["source"]]
+    )
+
+
+class SessionChange(BaseModel):
+    """What to change: the name, the sharing, or both (neither: nothing changes)."""
+
+    model_config = ConfigDict(extra="forbid")
+    name: str | None = Field(
+        None,
+        max_length=NAME_LENGTH,
+        pattern=r"\S",
+        description="a new name (not blank): the owner, an admin or, for a session shared editable, every user",
+    )
+    sharing: Sharing | None = Field(None, description=SHARING_DESCRIPTION)
+
+
+class CollectionChange(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    sharing: Sharing = Field(description=SHARING_DESCRIPTION)
+
+
+Role = Literal["owner", "manager", "annotator", "reviewer", "viewer"]
+
+
+class RoleRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    role: Role = Field(
+        description="viewer reads; reviewer reads and reviews; annotator reads and answers template curves on "
+        "members; manager also adds and removes members, runs, shares and grants roles; owner everything"
+    )
+
+
+class RoleGrant(BaseModel):
+    user: str = Field(description="the user's name")
+    user_id: int = Field(description="the user's stable id")
+    role: Role
+    granted_by: str | None = Field(description="who granted it (None: the collection's creator, by making it)")
+    granted_at: float = Field(description="when, UNIX seconds")
+
+
+class AssigneeRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    user: str | None = Field(description="the annotator's name (null: assigned to no one)")
+
+
+class SpreadRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    annotators: list[str] = Field(min_length=1, description="the users to spread the members over")
+    members: list[str] | None = Field(None, description="the members to assign (default: those assigned to no one)")
+
+
+class MemberProgress(BaseModel):
+    member: str
+    shape_name: str
+    session: str
+    assignee: str | None = Field(description="the annotator it is assigned to (null: no one)")
+    curves_done: int = Field(description="template curves answered on the member")
+    curves_total: int
+    done: bool = Field(description="every template curve answered")
+
+
+class AnnotatorProgress(BaseModel):
+    user: str
+    assigned: int
+    done: int
+    next: str | None = Field(description="their first member not done yet (null: all done)")
+
+
+class Assignments(BaseModel):
+    members: list[MemberProgress]
+    annotators: list[AnnotatorProgress] = Field(description="per annotator with members assigned, by name")
+
+
+class WorkItem(MemberProgress):
+    collection: str
+    collection_name: str
+
+
+class UserInfo(BaseModel):
+    name: str
+    admin: bool
+
+
+class RefineRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    converter: str = "nearest-neighbor"
+    params: dict = Field(default_factory=dict)
+
+
+class CollectionView(BaseModel):
+    collection: CollectionRecord
+    members: list[MemberStatus] = Field(description="per member: basis, curves answered, the newest run's job")
+    may: list[str] = Field(
+        [],
+        description="what you may do in it (your role and its sharing together): read, review, answer (your "
+        "assigned members once members are assigned), answer_any, edit (members, runs), manage (sharing, roles, "
+        "assignment), own (delete, owners)",
+    )
+    assignees: dict[str, str] = Field({}, description="member id -> the name of the annotator it is assigned to")
+
+
+class CollectionSummary(BaseModel):
+    id: str
+    name: str
+    owner: str
+    sharing: Sharing
+    template: str
+    k: int
+    n_curves: int = Field(description="template curves")
+    n_members: int
+    revision: int
+    updated_at: float
+
+
+class MembersRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    shapes: list[str] = Field(min_length=1, description="shape ids of the new members")
+
+
+class AnswerRequest(BaseModel):
+    """A member's curve answering a template curve: its target side clicked on the member."""
+
+    model_config = ConfigDict(extra="forbid")
+    template_curve: str = Field(description="t1, t2, ...: the template curve answered (answering it again replaces)")
+    target: list[VertexId] = Field(
+        min_length=2,
+        description="waypoints on the member (file ids), or a whole path",
+        examples=[EXAMPLE_PATHS["target"]],
+    )
+    explicit: bool = Field(False, description="target is a whole edge-connected vertex path")
+    tracer: str | None = Field(None, description="the collection's tracer when none is named")
+    tracer_params: dict = Field(default_factory=dict)
+    weight: CurveWeight = 1.0
+
+
+class RunRequest(RefineRequest):
+    members: list[str] | None = Field(
+        None, min_length=1, description="members to run (default all); the others keep the previous run's jobs"
+    )
+    only_ready: bool = Field(
+        False, description="run only those of the members that have curves (else 409 names the ones without)"
+    )
+
+
+class MemberMapsResponse(BaseModel):
+    member: str
+    shape: str
+    session: str
+    job: str
+    revision: int = Field(description="the session revision the maps were computed from")
+    C_template_to_member: list[list[float]]
+    C_member_to_template: list[list[float]]
+    map_member_to_template: list[int] = Field(description="line i: template vertex of member vertex i (file ids)")
+    map_template_to_member: list[int] = Field(description="line j: member vertex of template vertex j (file ids)")
+    report: dict = Field(description="quality figures, and which maps a refining converter kept and why")
+
+
+class ComposedMaps(BaseModel):
+    a: str
+    b: str
+    run: str
+    map_a_to_b: list[int] = Field(description="line i: b's vertex of a's vertex i, via the template (file ids)")
+    C_a_to_b: list[list[float]] = Field(
+        description="C_Tb C_aT: coefficients on a -> coefficients on b, k_b x k_a; maps handed out at different "
+        "sizes compose over the template frequencies both hold (docs: decisions, composing maps of different sizes)"
+    )

@@ -1,0 +1,581 @@
+"""``/collections``: a template with its curves and many members (each a session the collection owns), batch
+runs of refinement jobs over the members, a run's maps as one archive, member-to-member maps through the template.
+Who may do which: their roles in the collection, or its lab-wide sharing (:mod:`curvefm.service.permissions`);
+``/collections/{id}/roles`` grants the roles."""
+
+from __future__ import annotations
+
+import io
+from collections import Counter
+from itertools import chain, repeat
+from typing import Annotated, Literal
+
+import numpy as np
+from fastapi import APIRouter, File, Path, Query, Response, UploadFile
+from starlette.convertors import Convertor, register_url_convertor
+
+from curvefm.access import User
+from curvefm.collection import (
+    CollectionCreate,
+    CollectionRecord,
+    RunStatus,
+    archive_summary,
+    composed,
+    member_status,
+    run_maps,
+    run_status,
+    write_npz,
+    write_zip,
+)
+from curvefm.errors import Conflict, Forbidden, InvalidInput, NotFound, shown
+from curvefm.records.common import MAX_PAGE
+from curvefm.service.auth import AUTHENTICATED, CurrentUser
+from curvefm.service.deps import (
+    JOB_ERRORS,
+    Services,
+    ServicesDep,
+    job_admission,
+    job_view,
+    submit_basis,
+    submit_refine,
+    viewer,
+)
+from curvefm.service.errors import error_responses
+from curvefm.service.models import (
+    AnnotatorProgress,
+    AnswerRequest,
+    AssigneeRequest,
+    Assignments,
+    CollectionChange,
+    CollectionSummary,
+    CollectionView,
+    ComposedMaps,
+    CurveEdit,
+    MemberMapsResponse,
+    MemberProgress,
+    MembersRequest,
+    RoleGrant,
+    RoleRequest,
+    RunRequest,
+    SpreadRequest,
+    WorkItem,
+)
+from curvefm.service.openapi import SchemaRoute
+from curvefm.service.owned import COLLECTIONS, LIMIT_HELP, OFFSET_HELP, TOTAL_HEADER, TOTAL_SCHEMA, discard_job, paged
+from curvefm.service.permissions import REFUSALS, capabilities, check_collection, collection_for, session_for
+from curvefm.service.routes_sessions import IfMatch, converter_params, expected_revision
+from curvefm.service.routes_shapes import store_upload
+from curvefm.session import BasisNeed, SessionRecord, basis_available
+
+router = APIRouter(
+    tags=["collections"],
+    route_class=SchemaRoute,
+    dependencies=AUTHENTICATED,
+    responses=error_responses(401, 403, 503, 507),
+)
+ERRORS = error_responses(400, 404, 409, 413, 422)
+RUN_ERRORS = {
+    **error_responses(
+        400, 404, 409, 413, 422, 429, described={400: "the converter's parameters contradict each other"}
+    ),
+    **JOB_ERRORS,
+}
+ARCHIVE_TYPES = {"npz": "application/x-npz", "zip": "application/zip"}
+
+
+class MemberIdConvertor(Convertor[str]):
+    """A member id in a path: any segment but ``upload``, so that ``.../members/upload`` is no member's path (its
+    ``Allow`` names POST alone)."""
+
+    regex = "(?!upload$)[^/]+"
+
+    def convert(self, value: str) -> str:
+        return value
+
+    def to_string(self, value: str) -> str:
+        return value
+
+
+register_url_convertor("member", MemberIdConvertor())
+
+
+def _binary(*media: str) -> dict:
+    return {200: {"content": {m: {"schema": {"type": "string", "format": "binary"}} for m in media}}, **ERRORS}
+
+
+@router.post("/collections", status_code=201, response_model=CollectionView, responses={**ERRORS, **JOB_ERRORS})
+def create_collection(body: CollectionCreate, services: ServicesDep, user: CurrentUser) -> CollectionView:
+    """A collection of yours on a template shape. Template curves come from a session on the template
+    (``from_session``, which you may read: its source must be the template; its target becomes the first member
+    with its curves) or are given as waypoints on the template (``curves``). Basis jobs are queued for the
+    template and every member that lacks one (``GET /collections/{id}`` shows their state)."""
+    if body.from_session:
+        session_for(services, user, body.from_session, "read")
+    members = len(body.members or []) + bool(body.from_session)
+    with services.quotas.admit(user, "sessions", count=members) as conn:  # members are sessions of yours
+        record = services.collections.create(body, owner=user.name, conn=conn)
+    _queue_bases(services, record, user)
+    services.audit.record(user.name, "collection.create", record.id, {"members": len(record.members)})
+    return _view(services, record.id, user)
+
+
+@router.get(
+    "/collections",
+    response_model=list[CollectionSummary],
+    responses={200: {"headers": {TOTAL_HEADER: TOTAL_SCHEMA}}, **error_responses(422)},
+)
+def list_collections(
+    response: Response,
+    services: ServicesDep,
+    user: CurrentUser,
+    limit: Annotated[int | None, Query(ge=1, le=MAX_PAGE, description=LIMIT_HELP)] = None,
+    offset: Annotated[int, Query(ge=0, description=OFFSET_HELP)] = 0,
+) -> list[CollectionSummary]:
+    """The collections you may see (yours, those shared with the lab, and for admins all), the most recently
+    changed first: ``limit`` of them from ``offset`` (without ``limit``: all from ``offset``). The
+    ``X-Total-Count`` header says how many there are in all. Filtered, counted and sliced by the database."""
+    records = services.collections.records
+    rows, total = paged(lambda n, at: records.page(viewer(user), limit=n, offset=at), limit, offset)
+    response.headers[TOTAL_HEADER] = str(total)
+    return [CollectionSummary(**{k: getattr(r, k) for k in CollectionSummary.model_fields}) for r in rows]
+
+
+@router.get("/collections/{collection_id}", response_model=CollectionView, responses=ERRORS)
+def get_collection(collection_id: str, services: ServicesDep, user: CurrentUser) -> CollectionView:
+    """The collection, and per member: its shape and session, its basis (ready or the job's state), the template
+    curves answered on it, and its job in the newest run that ran it."""
+    collection_for(services, user, collection_id, "read")
+    return _view(services, collection_id, user)
+
+
+@router.patch("/collections/{collection_id}", response_model=CollectionRecord, responses=ERRORS)
+def change_collection(
+    collection_id: str, body: CollectionChange, services: ServicesDep, user: CurrentUser
+) -> CollectionRecord:
+    """Share the collection (and its member sessions) with the lab, or make it private: its owner, a manager or an
+    admin. The sharing is a lab-wide default: each user may do what their role or the sharing allows, whichever
+    allows more."""
+    return COLLECTIONS.share(services, user, collection_id, body.sharing)
+
+
+@router.delete("/collections/{collection_id}", status_code=204, responses=ERRORS)
+def delete_collection(collection_id: str, services: ServicesDep, user: CurrentUser) -> Response:
+    """Delete the collection, its member sessions and their refinement results: an owner or an admin."""
+    COLLECTIONS.delete(services, user, collection_id)
+    return Response(status_code=204)
+
+
+@router.post(
+    "/collections/{collection_id}/members",
+    status_code=201,
+    response_model=CollectionView,
+    responses={**ERRORS, **JOB_ERRORS},
+)
+def add_members(collection_id: str, body: MembersRequest, services: ServicesDep, user: CurrentUser) -> CollectionView:
+    """Add stored shapes as members (each gets a session template -> member); their basis jobs are queued.
+    413 past ``CURVEFM_MAX_MEMBERS``."""
+    collection_for(services, user, collection_id, "edit")
+    return _with_members(services, user, collection_id, body.shapes)
+
+
+@router.delete("/collections/{collection_id}/members/{member_id:member}", status_code=204, responses=ERRORS)
+def remove_member(
+    collection_id: str,
+    member_id: Annotated[str, Path(description="m1, m2, ...")],
+    services: ServicesDep,
+    user: CurrentUser,
+) -> Response:
+    """Remove a member: its session, its curves and the result files of its refinement jobs go with it (running
+    ones are canceled first), and it leaves the collection's runs. Whoever may add members (an owner, a manager,
+    an admin, or every user when the collection is shared editable)."""
+    collection_for(services, user, collection_id, "edit")
+    for job_id in services.collections.remove_member(collection_id, member_id):
+        discard_job(services, job_id)
+    services.audit.record(user.name, "collection.remove_member", collection_id, {"member": member_id})
+    return Response(status_code=204)
+
+
+@router.post(
+    "/collections/{collection_id}/members/upload",
+    status_code=201,
+    response_model=CollectionView,
+    responses={
+        **error_responses(400, 404, 409, 413, 422, 429, described={400: "no file, or a file that is not a mesh"}),
+        **JOB_ERRORS,
+    },
+)
+def upload_members(
+    collection_id: str,
+    services: ServicesDep,
+    user: CurrentUser,
+    files: Annotated[list[UploadFile], File(description="mesh files, one member each")] = [],  # noqa: B006 (FastAPI copies defaults)
+) -> CollectionView:
+    """Upload several meshes at once (as ``POST /shapes`` each) and add them as members. The members' limit and
+    your sessions quota are checked before anything is stored: a refused upload stores no shape."""
+    record = collection_for(services, user, collection_id, "edit")
+    if not files:  # a multipart body without parts: the schema cannot ask for at least one
+        raise InvalidInput("upload at least one mesh file (multipart field 'files')")
+    count = len(record.members) + len(files)
+    services.collections.limits.check("max_members", count, f"{count} members in collection {collection_id}")
+    with services.quotas.admit(user, "sessions", count=len(files)):
+        pass  # checked again when the members are added
+    shapes = [store_upload(services, user, file)[0] for file in files]
+    return _with_members(services, user, collection_id, shapes)
+
+
+def _with_members(services: Services, user: User, collection_id: str, shapes: list[str]) -> CollectionView:
+    """Add the stored shapes as members, queue their basis jobs, and return the collection's view."""
+    with services.quotas.admit(user, "sessions", count=len(shapes)) as conn:  # members are sessions of yours
+        services.collections.add_members(collection_id, shapes, conn=conn)
+    _queue_bases(services, services.collections.record(collection_id), user)
+    return _view(services, collection_id, user)
+
+
+@router.post(
+    "/collections/{collection_id}/members/{member_id}/curves",
+    status_code=201,
+    response_model=CurveEdit,
+    responses=ERRORS,
+)
+def answer_template_curve(
+    collection_id: str,
+    member_id: str,
+    body: AnswerRequest,
+    services: ServicesDep,
+    user: CurrentUser,
+    if_match: IfMatch = None,
+) -> CurveEdit:
+    """Answer a template curve on a member: ``target`` (clicked on the member) becomes a curve of the member's
+    session whose source is the template curve's path; its maps update as in a session. Answering a template
+    curve again replaces the earlier answer. Extra curves (answering no template curve) go through
+    ``POST /sessions/{session}/curves``; 409 while the member's basis is not ready. ``If-Match`` names the member
+    session's revision the answer is based on, as for a session's edits."""
+    check_collection(services, user, collection_id, "answer", member_id)
+    options = body.model_dump(exclude={"template_curve", "target"})
+    curve, summary = services.collections.answer(
+        collection_id, member_id, body.template_curve, body.target, expected_revision(if_match), **options
+    )
+    return CurveEdit(curve=curve, map=summary)
+
+
+@router.get("/collections/{collection_id}/roles", response_model=list[RoleGrant], responses=ERRORS)
+def list_roles(collection_id: str, services: ServicesDep, user: CurrentUser) -> list[RoleGrant]:
+    """Who holds which role in the collection: its creator (an owner by making it) first, then the granted roles
+    by role and name. Whoever may read the collection."""
+    record = collection_for(services, user, collection_id, "read")
+    grants = [RoleGrant(**vars(g)) for g in services.collections.records.grants(collection_id)]
+    creator = services.users.get(record.owner)
+    if creator is None:  # removed: the collection keeps its granted owners and managers
+        return grants
+    made = RoleGrant(user=creator.name, user_id=creator.id, role="owner", granted_by=None, granted_at=record.created_at)
+    return [made, *grants]
+
+
+@router.put("/collections/{collection_id}/roles/{user_name}", response_model=RoleGrant, responses=ERRORS)
+def grant_role(
+    collection_id: str, user_name: str, body: RoleRequest, services: ServicesDep, user: CurrentUser
+) -> RoleGrant:
+    """Give a user a role in the collection (replacing the one they held): an owner, a manager or an admin; the
+    owner role (given, or taken by replacing it) an owner or an admin alone. Audited as ``collection.grant``."""
+    target, previous = _grantee(services, user, collection_id, user_name, body.role)
+    services.collections.records.grant(collection_id, target.id, body.role, user.id)
+    detail = {"user": target.name, "user_id": target.id, "role": body.role, "previous": previous}
+    services.audit.record(user.name, "collection.grant", collection_id, detail)
+    (granted,) = [g for g in services.collections.records.grants(collection_id) if g.user_id == target.id]
+    return RoleGrant(**vars(granted))
+
+
+@router.delete("/collections/{collection_id}/roles/{user_name}", status_code=204, responses=ERRORS)
+def revoke_role(collection_id: str, user_name: str, services: ServicesDep, user: CurrentUser) -> Response:
+    """Take a user's role in the collection away (they keep what its sharing allows every user): as granting;
+    404 for a user holding none. Audited as ``collection.revoke``."""
+    target, previous = _grantee(services, user, collection_id, user_name, None)
+    if previous is None:
+        raise NotFound(f"user '{target.name}' holds no role in collection {collection_id}")
+    services.collections.records.revoke(collection_id, target.id)
+    detail = {"user": target.name, "user_id": target.id, "role": previous}
+    services.audit.record(user.name, "collection.revoke", collection_id, detail)
+    return Response(status_code=204)
+
+
+def _grantee(
+    services: Services, user: User, collection_id: str, user_name: str, role: str | None
+) -> tuple[User, str | None]:
+    """The user whose role changes and the role they hold, once ``user`` may change it to ``role`` (None: take it
+    away): 404 for a user that does not exist, 403 for owners' grants unless ``user`` is an owner (the records
+    refuse to change the creator's role)."""
+    held = check_collection(services, user, collection_id, "manage")
+    target = services.users.get(user_name)
+    if target is None:
+        raise NotFound(f"no user named '{shown(user_name)}'")
+    grants = services.collections.records.grants(collection_id)
+    previous = next((g.role for g in grants if g.user_id == target.id), None)
+    if "owner" in (role, previous) and "own" not in held:
+        raise Forbidden(f"collection {collection_id}: {REFUSALS['own']}; ask one of its owners")
+    return target, previous
+
+
+@router.put(
+    "/collections/{collection_id}/members/{member_id}/assignee", response_model=MemberProgress, responses=ERRORS
+)
+def assign_member(
+    collection_id: str, member_id: str, body: AssigneeRequest, services: ServicesDep, user: CurrentUser
+) -> MemberProgress:
+    """Assign a member to an annotator (a user who may answer in the collection), or to no one (``null``): an
+    owner, a manager or an admin. Once any member is assigned, annotators answer only the members assigned to
+    them. Audited as ``collection.assign``."""
+    check_collection(services, user, collection_id, "manage")
+    assignee = _annotator(services, collection_id, body.user) if body.user else None
+    services.collections.records.assign(collection_id, {member_id: assignee.id if assignee else None})
+    services.audit.record(user.name, "collection.assign", collection_id, {"members": [member_id], "user": body.user})
+    (progress,) = [p for p in _assignments(services, collection_id).members if p.member == member_id]
+    return progress
+
+
+@router.post("/collections/{collection_id}/assign", response_model=Assignments, responses=ERRORS)
+def spread_members(collection_id: str, body: SpreadRequest, services: ServicesDep, user: CurrentUser) -> Assignments:
+    """Spread members evenly over ``annotators``: each member (``members``, by default those assigned to no one,
+    in order) goes to the annotator with the fewest members assigned so far (ties: the first named). As
+    ``PUT .../assignee``: an owner, a manager or an admin; audited as ``collection.assign``."""
+    check_collection(services, user, collection_id, "manage")
+    annotators = [_annotator(services, collection_id, name) for name in dict.fromkeys(body.annotators)]
+    record, records = services.collections.record(collection_id), services.collections.records
+    assigned = records.assignees(collection_id)
+    if body.members:
+        members = [record.member(member_id).id for member_id in dict.fromkeys(body.members)]
+    else:
+        members = [m.id for m in record.members if m.id not in assigned]
+    load = Counter(user_id for member_id, (user_id, _) in assigned.items() if member_id not in members)
+    plan: dict[str, int | None] = {}
+    for member_id in members:
+        chosen = min(annotators, key=lambda annotator: load[annotator.id])
+        plan[member_id], load[chosen.id] = chosen.id, load[chosen.id] + 1
+    records.assign(collection_id, plan)
+    detail = {"members": members, "annotators": [a.name for a in annotators]}
+    services.audit.record(user.name, "collection.assign", collection_id, detail)
+    return _assignments(services, collection_id)
+
+
+@router.get("/collections/{collection_id}/assignments", response_model=Assignments, responses=ERRORS)
+def get_assignments(collection_id: str, services: ServicesDep, user: CurrentUser) -> Assignments:
+    """Progress per member (its annotator, template curves answered) and per annotator (members assigned, done,
+    and the next one to do). Whoever may read the collection."""
+    check_collection(services, user, collection_id, "read")
+    return _assignments(services, collection_id)
+
+
+@router.get("/me/work", response_model=list[WorkItem])
+def my_work(services: ServicesDep, user: CurrentUser) -> list[WorkItem]:
+    """The members assigned to you in every collection you may still read: those not done first (the first is
+    what is next), the most recently changed collection first, members in order."""
+    items = []
+    for work in services.collections.records.work(user.id):
+        if "read" not in capabilities(user, services.collections.records.standing(work.collection_id, viewer(user))):
+            continue
+        session = services.sessions.record(work.session_id)
+        record = services.collections.record(work.collection_id)
+        names = services.shapes.names([work.shape])
+        progress = _progress(record, work.member_id, session, user.name, names.get(work.shape) or work.shape[:12])
+        items.append(WorkItem(collection=record.id, collection_name=record.name, **progress.model_dump()))
+    return sorted(items, key=lambda item: item.done)
+
+
+def _annotator(services: Services, collection_id: str, name: str) -> User:
+    """The user of that name, when they may answer in the collection (404: no such user; 409: they may not)."""
+    target = services.users.get(name)
+    if target is None:
+        raise NotFound(f"no user named '{shown(name)}'")
+    standing = services.collections.records.standing(collection_id, viewer(target))
+    if "answer" not in capabilities(target, standing):
+        raise Conflict(
+            f"user '{target.name}' may not answer in collection {collection_id}; grant them the annotator role "
+            "first (PUT .../roles/{user})"
+        )
+    return target
+
+
+def _assignments(services: Services, collection_id: str) -> Assignments:
+    record = services.collections.record(collection_id)
+    assigned = services.collections.records.assignees(collection_id)
+    names = services.shapes.names([m.shape for m in record.members])
+    members = [
+        _progress(
+            record,
+            m.id,
+            services.sessions.record(m.session),
+            assigned[m.id][1] if m.id in assigned else None,
+            names.get(m.shape) or m.shape[:12],
+        )
+        for m in record.members
+    ]
+    by_user: dict[str, list[MemberProgress]] = {}
+    for progress in members:
+        if progress.assignee is not None:
+            by_user.setdefault(progress.assignee, []).append(progress)
+    annotators = [
+        AnnotatorProgress(
+            user=name,
+            assigned=len(mine),
+            done=sum(p.done for p in mine),
+            next=next((p.member for p in mine if not p.done), None),
+        )
+        for name, mine in sorted(by_user.items())
+    ]
+    return Assignments(members=members, annotators=annotators)
+
+
+def _progress(
+    record: CollectionRecord, member_id: str, session: SessionRecord, assignee: str | None, shape_name: str
+) -> MemberProgress:
+    templates = {c.id for c in record.curves}
+    answered = len({c.spec.template_curve for c in session.curves} & templates)
+    return MemberProgress(
+        member=member_id,
+        shape_name=shape_name,
+        session=session.id,
+        assignee=assignee,
+        curves_done=answered,
+        curves_total=len(templates),
+        done=bool(templates) and answered == len(templates),
+    )
+
+
+@router.post("/collections/{collection_id}/runs", status_code=202, response_model=RunStatus, responses=RUN_ERRORS)
+def start_run(collection_id: str, body: RunRequest, services: ServicesDep, user: CurrentUser) -> RunStatus:
+    """Refine every member (or ``members``; with ``only_ready``, those of them that have curves) as one job each
+    on the workers, with one converter and parameters (as ``POST /sessions/{id}/refine``); 409 names the members
+    without curves unless ``only_ready``. A run is admitted once by your concurrent-jobs quota (429 at it); its
+    jobs then count towards it until they end. Members left out keep their previous run's jobs. A run is recorded
+    in the collection, so it needs the right to edit it (a read-only sharer refines a member's session instead)."""
+    record = collection_for(services, user, collection_id, "edit")
+    shapes = (record.template, *(m.shape for m in record.members))
+    params = converter_params(services, body, shapes, f"collection {collection_id}")
+    admissions = chain([job_admission(services, user)], repeat(None))  # the run's first job admits it
+
+    def submit(session) -> str:
+        return submit_refine(services, session, body.converter, params, user.name, next(admissions)).id
+
+    run = services.collections.start_run(collection_id, body.converter, params, submit, body.members, body.only_ready)
+    services.audit.record(user.name, "collection.run", collection_id, {"run": run.id, "jobs": len(run.members)})
+    return run_status(run, lambda job_id: job_view(services, job_id))
+
+
+@router.get("/collections/{collection_id}/runs/{run_id}", response_model=RunStatus, responses=ERRORS)
+def get_run(collection_id: str, run_id: str, services: ServicesDep, user: CurrentUser) -> RunStatus:
+    """The run's state over all members (finished when every member's job finished), and each member's job."""
+    record = collection_for(services, user, collection_id, "read")
+    return run_status(record.run(run_id), lambda job_id: job_view(services, job_id))
+
+
+@router.get(
+    "/collections/{collection_id}/runs/{run_id}/archive.{kind}",
+    response_class=Response,
+    responses=_binary(*ARCHIVE_TYPES.values()),
+)
+def get_archive(
+    collection_id: str, run_id: str, kind: Literal["npz", "zip"], services: ServicesDep, user: CurrentUser
+) -> Response:
+    """All maps of a finished run. ``npz``: ``<member>/C_template_to_member`` and ``C_member_to_template``
+    (k x k), ``<member>/map_member_to_template`` (template vertex of each member vertex, file ids, -1 for none)
+    and ``map_template_to_member``, and ``summary.json`` (members, shapes, sessions, quality figures). ``zip``:
+    the same as ``<member>/<name>.txt`` files. 409 names the members still pending or failed."""
+    record = collection_for(services, user, collection_id, "read")
+    run, maps = _maps(services, record, run_id)
+    out = io.BytesIO()
+    (write_npz if kind == "npz" else write_zip)(out, maps, archive_summary(record, run, maps))
+    filename = f"collection_{collection_id}_{run_id}.{kind}"
+    headers = {"Content-Disposition": f'attachment; filename="{filename}"'}
+    return Response(out.getvalue(), media_type=ARCHIVE_TYPES[kind], headers=headers)
+
+
+@router.get(
+    "/collections/{collection_id}/runs/{run_id}/members/{member_id}",
+    response_model=MemberMapsResponse,
+    responses=ERRORS,
+)
+def get_member_maps(
+    collection_id: str, run_id: str, member_id: str, services: ServicesDep, user: CurrentUser
+) -> MemberMapsResponse:
+    """One member's maps from a run (as in the archive); 409 while its job has not finished."""
+    record = collection_for(services, user, collection_id, "read")
+    (maps,) = _maps(services, record, run_id, [member_id])[1]
+    arrays = {name: array.tolist() for name, array in maps.arrays.items()}
+    fields = {"member": maps.member, "shape": maps.shape, "session": maps.session, "job": maps.job}
+    return MemberMapsResponse(**fields, revision=maps.revision, report=maps.report, **arrays)
+
+
+@router.get(
+    "/collections/{collection_id}/runs/{run_id}/members/{a}/to/{b}",
+    response_model=ComposedMaps,
+    responses={200: {"content": {"application/x-npz": {"schema": {"type": "string", "format": "binary"}}}}, **ERRORS},
+)
+def get_composed(
+    collection_id: str,
+    run_id: str,
+    a: str,
+    b: str,
+    services: ServicesDep,
+    user: CurrentUser,
+    format: Literal["json", "npz"] = "json",
+) -> ComposedMaps | Response:
+    """Member a's maps to member b through the template: the pointwise map ``P_ab = P_Tb[P_aT]`` (b's vertex for
+    each vertex of a, file ids) and the functional map ``C_ab = C_Tb C_aT``; ``format=npz`` for the arrays
+    (``map_a_to_b``, ``C_a_to_b``). 409 while either member's job has not finished."""
+    record = collection_for(services, user, collection_id, "read")
+    _, (maps_a, maps_b) = _maps(services, record, run_id, [a, b])
+    p2p, C = composed(maps_a, maps_b)
+    if format == "npz":
+        out = io.BytesIO()
+        np.savez_compressed(out, map_a_to_b=p2p, C_a_to_b=C)
+        return Response(out.getvalue(), media_type="application/x-npz")
+    return ComposedMaps(a=a, b=b, run=run_id, map_a_to_b=p2p.tolist(), C_a_to_b=C.tolist())
+
+
+def _maps(services: Services, record: CollectionRecord, run_id: str, only: list[str] | None = None):
+    run = record.run(run_id)
+    for member_id in only or ():
+        record.member(member_id)  # an unknown member is a 404, not a pending one
+        if member_id not in run.members:
+            raise NotFound(f"member {member_id} is not in run {run_id}; run it (POST .../runs with members)")
+    results = services.store.root / "results"
+    return run, run_maps(record, run, lambda job_id: job_view(services, job_id), results, only)
+
+
+def _view(services: Services, collection_id: str, user: User) -> CollectionView:
+    """The collection with its members' progress, and what ``user`` may do in it."""
+    record = services.collections.record(collection_id)
+    names = services.shapes.names([m.shape for m in record.members])
+    members = [
+        member_status(
+            record,
+            m,
+            services.sessions.record(m.session),
+            _basis_state(services, record, m.shape, m.basis_job),
+            lambda job_id: job_view(services, job_id),
+            names.get(m.shape) or m.shape[:12],
+        )
+        for m in record.members
+    ]
+    may = capabilities(user, services.collections.records.standing(collection_id, viewer(user)))
+    assignees = {member: name for member, (_, name) in services.collections.records.assignees(collection_id).items()}
+    return CollectionView(collection=record, members=members, may=sorted(may), assignees=assignees)
+
+
+def _need(record: CollectionRecord, shape: str) -> BasisNeed:
+    return BasisNeed(shape, "member", record.k, record.basis_plugin, record.basis_params)
+
+
+def _basis_state(services: Services, record: CollectionRecord, shape: str, job_id: str | None) -> str:
+    if basis_available(services.store, _need(record, shape)):
+        return "ready"
+    return job_view(services, job_id).state if job_id else "missing"
+
+
+def _queue_bases(services: Services, record: CollectionRecord, user: User) -> None:
+    """Queue the basis of the template and of each member that lacks one (deduplicated by the queue)."""
+    if not basis_available(services.store, _need(record, record.template)):
+        submit_basis(services, record.template, record.k, record.basis_plugin, record.basis_params, user.name)
+    for member in record.members:
+        if member.basis_job is None and not basis_available(services.store, _need(record, member.shape)):
+            info = submit_basis(services, member.shape, record.k, record.basis_plugin, record.basis_params, user.name)
+            services.collections.set_basis_job(record.id, member.id, info.id)

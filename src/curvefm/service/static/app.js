@@ -1,0 +1,151 @@
+// The curvefm web UI: the interactive loop of curve-constrained functional maps. Click corresponding curves on
+// the source and the target; after every edit the target shows a source function carried by the map.
+//
+// The entry point: it binds every control of the page to what it does (controllers/), installs the hooks of the
+// tests and benchmarks, and starts. The state lives in store.js; views/ draws it; api.js talks to the service.
+import {
+  addMembers,
+  assignEvenly,
+  chooseCollection,
+  createCollection,
+  grantRole,
+  openWork,
+  runReady,
+} from "./controllers/collections.js";
+import { watchConnection } from "./controllers/connection.js";
+import { cancelPending, clickCurveList, pickVertex, pressKey, undo } from "./controllers/curves.js";
+import {
+  changeRegionRadius,
+  followCameras,
+  linkCameras,
+  pickRegion,
+  reorient,
+  selectFunction,
+  selectMap,
+  showCurveTubes,
+  useTextureImage,
+} from "./controllers/display.js";
+import { clickMemberList, clickTemplateList, openNextMember, skip, step } from "./controllers/guide.js";
+import "./controllers/live.js"; // follows the open session's changes made elsewhere (the store's "followed")
+import { logOut, watchLogin } from "./controllers/login.js";
+import { openPair, upload } from "./controllers/pair.js";
+import { cancelRefine, downloadLiveExport, refine } from "./controllers/refine.js";
+import { toggleQuality } from "./controllers/quality.js";
+import {
+  chooseSession,
+  deleteSession,
+  renameSession,
+  searchSessions,
+  shareSession,
+} from "./controllers/session.js";
+import { start } from "./controllers/startup.js";
+import { chooseTarget, setTexture, state } from "./store.js";
+import { checkerboardTexture } from "./views/colors.js";
+import { $ } from "./views/dom.js";
+import { showParameters } from "./views/forms.js";
+import { showRadius } from "./views/page.js";
+import { SIDES, viewports } from "./views/viewports.js";
+
+setTexture(checkerboardTexture());
+followCameras();
+installTestHooks();
+bindControls();
+watchConnection();
+watchLogin();
+start();
+
+function bindControls() {
+  const on = (id, type, listener) => $(id).addEventListener(type, listener);
+  const each = (selector, type, listener) => {
+    for (const input of document.querySelectorAll(selector)) input.addEventListener(type, listener);
+  };
+  // the shapes, and clicks on them
+  for (const side of SIDES) viewports[side].onPick((vertex, event) => pickVertex(side, vertex, event));
+  window.addEventListener("keydown", pressKey);
+  on("logout-button", "click", logOut);
+  // Shapes & session
+  on("open-pair", "click", openPair);
+  on("upload-input", "change", (event) => upload(event.target));
+  on("target-select", "change", chooseTarget);
+  on("session-select", "change", (event) => chooseSession(event.target.value));
+  on("sharing-select", "change", (event) => shareSession(event.target.value));
+  on("session-search", "input", (event) => searchSessions(event.target.value));
+  on("rename-session", "click", renameSession);
+  on("session-name", "keydown", (event) => event.key === "Enter" && renameSession());
+  on("delete-session", "click", deleteSession);
+  // Collections
+  on("collection-select", "change", (event) => chooseCollection(event.target.value));
+  on("create-collection", "click", createCollection);
+  on("add-members", "click", addMembers);
+  on("member-list", "click", clickMemberList);
+  on("grant-role-button", "click", grantRole);
+  on("assign-evenly", "click", assignEvenly);
+  on("my-work", "click", (event) => event.target.closest("li") && openWork(event.target.closest("li")));
+  on("template-curves", "click", clickTemplateList);
+  on("guide-skip", "click", skip);
+  on("guide-previous", "click", () => step(-1));
+  on("guide-next", "click", () => step(1));
+  on("guide-next-member", "click", openNextMember);
+  on("run-converter-select", "change", () => showParameters("converter", "run-converter"));
+  on("run-all", "click", runReady);
+  // Curves
+  on("tracer-select", "change", () => showParameters("tracer"));
+  on("curve-list", "click", clickCurveList);
+  on("undo-button", "click", (event) => undo(event.timeStamp));
+  on("cancel-pending", "click", cancelPending);
+  // View
+  each('input[name="function"]', "change", (event) => selectFunction(event.target.value));
+  each('input[name="map"]', "change", (event) => selectMap(event.target.value, event.timeStamp));
+  on("region-radius", "change", (event) => changeRegionRadius(event.timeStamp));
+  on("region-radius", "input", (event) => showRadius(event.target.value));
+  on("region-pick", "click", pickRegion);
+  on("up-select", "change", reorient);
+  on("reset-view", "click", reorient);
+  on("link-cameras", "change", (event) => linkCameras(event.target.checked));
+  on("show-curves", "change", (event) => showCurveTubes(event.target.checked));
+  on("show-quality", "change", (event) => toggleQuality(event.target.checked));
+  on("texture-input", "change", (event) => useTextureImage(event.target));
+  // Refine & export
+  on("converter-select", "change", () => showParameters("converter"));
+  on("refine-button", "click", refine);
+  on("cancel-refine", "click", cancelRefine);
+  each(".live-export", "click", downloadLiveExport);
+}
+
+/** Hooks for tests and benchmarks: ids are file ids, positions client pixels. */
+function installTestHooks() {
+  window.curvefmStats = state.stats;
+  window.curvefm = {
+    get sessionId() {
+      return state.session?.id ?? null;
+    },
+    get ready() {
+      return state.ready;
+    },
+    /** The guided member and its current template curve: { collection, member, current } or null. */
+    get guide() {
+      return state.guide && { ...state.guide };
+    },
+    vertexToScreen(side, fileId) {
+      const { mesh } = state.shapes[side];
+      return viewports[side].vertexToScreen(mesh.fileToInternal[fileId]);
+    },
+    get quality() {
+      const { quality } = state;
+      return quality && { score: quality.score, revision: quality.revision, priorPending: quality.priorPending };
+    },
+    /** How many curve tubes one side draws. */
+    tubeCount(side) {
+      return viewports[side].curveTubes.size;
+    },
+    /** The file id of the (drawn) vertex ringed on one side as the weakest region, or null. */
+    highlighted(side) {
+      const vertex = viewports[side].highlightedVertex;
+      return vertex >= 0 ? state.shapes[side].mesh.fileIds[vertex] : null;
+    },
+    screenToVertex(side, x, y) {
+      const vertex = viewports[side].pick(x, y);
+      return vertex < 0 ? null : state.shapes[side].mesh.fileIds[vertex];
+    },
+  };
+}

@@ -1,0 +1,238 @@
+"""Guided clicking of a collection's template curves in a real browser (Debian's Chromium through Playwright)
+against a real ``python -m curvefm.service`` process: a collection with two template curves on a small ellipsoid and
+one member (a stretched copy, same vertex ids), made through the API; in the page the member is opened, its first
+template curve answered by real clicks on the target, another skipped, and the collection run as a batch whose
+archive is downloaded. Screenshots go to ``test-artifacts/ui/``."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from support.paths import REPO
+from support.processes import add_user
+from support.shapes import ellipsoid, off_bytes
+from support.ui import (
+    VIEWPORT,
+    canvas_pixels,
+    changed_fraction,
+    endpoint_pairs,
+    next_frames,
+    open_session,
+    pickable_vertices,
+    sample_count,
+)
+
+ARTIFACTS = REPO / "test-artifacts" / "ui"
+K = 20
+TEMPLATE_CURVES = [{"name": "spine", "waypoints": [10, 500]}, {"name": "tail", "waypoints": [30, 900]}]
+
+
+@pytest.fixture(scope="module")
+def served(module_processes, tmp_path_factory):
+    """A server (jobs in-process) with a collection c of two template curves and one member m1 whose bases are ready."""
+    api = module_processes.api(tmp_path_factory.mktemp("ui-collections") / "data")
+    shapes = []
+    for radii in ((1.0, 0.7, 0.5), (1.1, 0.6, 0.55)):
+        upload = api.client.post("/shapes", files={"file": ("ellipsoid.off", off_bytes(ellipsoid(radii=radii)))})
+        shapes.append(upload.raise_for_status().json()["id"])
+        job = api.client.post(f"/shapes/{shapes[-1]}/bases", json={"k": K}).raise_for_status().json()
+        assert api.wait_job(job["id"])["state"] == "finished"
+    body = {"name": "ellipsoids", "template": shapes[0], "curves": TEMPLATE_CURVES, "members": [shapes[1]], "k": K}
+    view = api.client.post("/collections", json=body).raise_for_status().json()
+    assert [m["basis"] for m in view["members"]] == ["ready"]
+    return api, view
+
+
+def member_status(api, collection_id: str) -> dict:
+    (member,) = api.client.get(f"/collections/{collection_id}").raise_for_status().json()["members"]
+    return member
+
+
+def current(page):
+    return page.evaluate("window.curvefm.guide && window.curvefm.guide.current")
+
+
+def wait_for_current(page, curve_id) -> None:
+    page.wait_for_function(
+        "(id) => window.curvefm.ready && window.curvefm.guide && window.curvefm.guide.current === id", arg=curve_id
+    )
+
+
+def test_a_member_is_clicked_curve_by_curve_skipped_and_run(browser, served):
+    api, view = served
+    collection_id, (member,) = view["collection"]["id"], view["members"]
+    context = browser.new_context(viewport=VIEWPORT, accept_downloads=True)
+    page = context.new_page()
+    errors = []
+    page.on("pageerror", lambda error: errors.append(str(error)))
+    open_session(page, api.url, member["session"], token=api.token)
+
+    page.click("#collections-panel summary")
+    page.select_option("#collection-select", collection_id)
+    page.click('#member-list li[data-member-id="m1"] button[data-action="open"]')
+    wait_for_current(page, "t1")
+    assert page.text_content("#guide-prompt").startswith("t1 'spine': click its start on the member")
+    assert page.text_content("#hint") == page.text_content("#guide-prompt")
+    assert "0/2 curves" in page.text_content('#member-list li[data-member-id="m1"]')
+    page.click("#guide-skip")
+    wait_for_current(page, "t2")
+    assert page.get_attribute("#template-curves li.current", "data-template-curve") == "t2"
+    page.click("#guide-previous")
+    wait_for_current(page, "t1")
+
+    page.uncheck("#show-curves")  # compare the carried texture alone
+    before = canvas_pixels(page, "target")
+    ((start, end),) = endpoint_pairs(pickable_vertices(page), 1, seed=2)
+    samples = sample_count(page)
+    page.mouse.click(*start["target"])
+    next_frames(page)
+    assert page.text_content("#guide-prompt").startswith("t1 'spine': click its end on the member")
+    page.mouse.click(*end["target"])
+    page.wait_for_function("(n) => window.curvefmStats.samples.length > n", arg=samples, timeout=30_000)
+    assert page.evaluate("window.curvefmStats.last.kind") == "answer"
+    changed = changed_fraction(before, canvas_pixels(page, "target"))
+    assert changed > 0.003, f"the member's texture barely changed ({changed:.4f}) after answering t1"
+    page.check("#show-curves")
+    wait_for_current(page, "t2")  # the next unanswered template curve
+    page.wait_for_selector('#template-curves li[data-template-curve="t1"].answered')
+    page.wait_for_selector('#member-list li[data-member-id="m1"]:has-text("1/2 curves")')
+    assert page.text_content("#guide-prompt").startswith("t2 'tail': click its start")
+    next_frames(page)
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    page.screenshot(path=str(ARTIFACTS / "10-collection-member-t1-answered.png"))
+
+    status = member_status(api, collection_id)
+    assert (status["curves_done"], status["curves_total"], status["extra_curves"]) == (1, 2, 0)
+    (curve,) = api.client.get(f"/sessions/{member['session']}").json()["curves"]
+    assert curve["spec"]["template_curve"] == "t1" and curve["spec"]["target"] == [start["id"], end["id"]]
+    assert "→ t1" in page.text_content(f'#curve-list li[data-curve-id="{curve["id"]}"]')
+
+    page.click("#guide-skip")  # t1 is answered: nothing is left to answer
+    page.wait_for_function("() => window.curvefm.guide.current === null")
+    assert page.text_content("#guide-prompt").startswith("Skipped template curves are left")
+    assert page.is_disabled("#guide-next-member")  # the only member
+    page.reload()  # the URL names the member: it opens guided again, at its first unanswered curve
+    wait_for_current(page, "t2")
+
+    page.select_option("#run-converter-select", "nearest-neighbor")
+    page.click("#run-all")
+    page.wait_for_selector('#run-downloads a[download="archive.npz"]', timeout=60_000)
+    assert page.locator("#run-progress .progress-row.ok").count() == 1
+    page.wait_for_selector('#member-list li[data-member-id="m1"]:has-text("run finished")')
+    with page.expect_download() as download:
+        page.click('#run-downloads a[download="archive.npz"]')
+    archive = np.load(download.value.path())
+    live = api.client.get(f"/sessions/{member['session']}/map").json()
+    np.testing.assert_allclose(archive["m1/C_template_to_member"], live["C_source_to_target"], atol=1e-12)
+    context.close()
+    assert not errors, f"uncaught errors in the page: {errors}"
+
+
+def test_members_are_added_named_finished_with_next_member_and_removed(browser, served):
+    api, view = served
+    template, first = view["collection"]["template"], view["members"][0]["shape"]
+    third = api.client.post("/shapes", files={"file": ("puma.off", off_bytes(ellipsoid(radii=(1.2, 0.6, 0.5))))})
+    puma = third.raise_for_status().json()["id"]
+    body = {"name": "tidy", "template": template, "curves": TEMPLATE_CURVES, "members": [first], "k": K}
+    made = api.client.post("/collections", json=body).raise_for_status().json()
+    collection_id = made["collection"]["id"]
+    for curve in TEMPLATE_CURVES:  # m1 answers both template curves (the shapes share their vertex ids)
+        answer = {"template_curve": f"t{TEMPLATE_CURVES.index(curve) + 1}", "target": curve["waypoints"]}
+        api.client.post(f"/collections/{collection_id}/members/m1/curves", json=answer).raise_for_status()
+    context = browser.new_context(viewport=VIEWPORT)
+    page = context.new_page()
+    errors = []
+    page.on("pageerror", lambda error: errors.append(str(error)))
+    open_session(page, api.url, view["members"][0]["session"], token=api.token)
+    page.click("#collections-panel summary")
+    page.select_option("#collection-select", collection_id)
+    page.wait_for_selector('#member-list li[data-member-id="m1"]:has-text("ellipsoid (m1)")')  # the shape's name
+
+    page.select_option("#member-shapes", [puma])
+    page.click("#add-members")
+    page.wait_for_selector('#member-list li[data-member-id="m2"]:has-text("puma (m2)")')
+    m2_session = api.client.get(f"/collections/{collection_id}").json()["members"][1]["session"]
+    assert page.eval_on_selector("#member-shapes", "(s) => s.selectedOptions.length") == 0  # cleared after adding
+    page.select_option("#member-shapes", [puma])
+    page.click("#add-members")  # a member already: refused, naming it
+    page.wait_for_selector(".toast:has-text('already')")
+    assert "puma" in page.text_content(".toast:has-text('already')")
+
+    page.wait_for_selector('#member-list li[data-member-id="m1"] button[data-action="open"]:not([disabled])')
+    page.click('#member-list li[data-member-id="m1"] button[data-action="open"]')
+    page.wait_for_function("() => window.curvefm.ready && window.curvefm.guide && window.curvefm.guide.member === 'm1'")
+    assert current(page) is None  # every template curve answered: nothing is current
+    assert page.text_content("#guide-prompt").startswith("Every template curve is answered on this member")
+    page.wait_for_selector("#guide-next-member.primary:not([disabled])", timeout=60_000)  # once m2's basis is ready
+    page.click("#guide-next-member")
+    page.wait_for_function("() => window.curvefm.ready && window.curvefm.guide && window.curvefm.guide.member === 'm2'")
+    assert current(page) == "t1"
+
+    page.click("#run-all")  # m1 is ready, m2 is not: only m1 runs
+    page.wait_for_selector("#run-progress .progress-row", timeout=30_000)
+    assert page.locator("#run-progress .progress-row").count() == 1
+
+    dialogs = []
+    page.once("dialog", lambda dialog: (dialogs.append(dialog.message), dialog.dismiss()))
+    page.click('#member-list li[data-member-id="m1"] button[data-action="remove"]')
+    assert dialogs and "ellipsoid (m1)" in dialogs[0] and "deleted" in dialogs[0]
+    assert page.locator('#member-list li[data-member-id="m1"]').count() == 1  # dismissed: kept
+    page.once("dialog", lambda dialog: dialog.accept())
+    page.click('#member-list li[data-member-id="m2"] button[data-action="remove"]')  # the member being clicked
+    page.wait_for_selector('#member-list li[data-member-id="m2"]', state="detached")
+    # the session shown is gone: the page starts over on the newest session left (this server has none)
+    page.wait_for_function("() => window.curvefm && !window.curvefm.sessionId && !location.search.includes('session')")
+    assert api.client.get(f"/sessions/{m2_session}").status_code == 404
+    members = api.client.get(f"/collections/{collection_id}").json()["members"]
+    assert [m["id"] for m in members] == ["m1"]
+    context.close()
+    assert not errors, f"uncaught errors in the page: {errors}"
+
+
+def test_an_annotator_finds_their_work_and_a_manager_grants_a_role(browser, served):
+    api, view = served
+    body = {"name": "project", "template": view["collection"]["template"], "curves": TEMPLATE_CURVES, "k": K}
+    made = api.client.post("/collections", json={**body, "members": [view["members"][0]["shape"]]}).json()
+    collection_id, session = made["collection"]["id"], made["members"][0]["session"]
+    tokens = {name: add_user(api.data_dir, name) for name in ("ann", "mia", "vic")}
+    base = f"/collections/{collection_id}"
+    api.client.put(f"{base}/roles/ann", json={"role": "annotator"}).raise_for_status()
+    api.client.put(f"{base}/roles/mia", json={"role": "manager"}).raise_for_status()
+    api.client.post(f"{base}/assign", json={"annotators": ["ann"]}).raise_for_status()
+    errors = []
+
+    annotator = browser.new_context(viewport=VIEWPORT).new_page()
+    annotator.on("pageerror", lambda error: errors.append(str(error)))
+    open_session(annotator, api.url, session, token=tokens["ann"])
+    annotator.click("#collections-panel summary")
+    work = f'#my-work li[data-collection="{collection_id}"][data-member="m1"]'
+    assert annotator.text_content(work) == "next: project · ellipsoid (m1) · 0/2 curves"
+    annotator.click(work)
+    annotator.wait_for_selector('#member-list li[data-member-id="m1"]:has-text("· ann")')
+    annotator.wait_for_selector("#collection-roles:has-text('ann annotator')")
+    assert annotator.text_content("#collection-roles") == "Roles: tester owner · mia manager · ann annotator"
+    assert annotator.is_hidden("#grant-role") and annotator.is_disabled("#add-members")
+    annotator.click('#member-list li[data-member-id="m1"] button[data-action="open"]')
+    wait_for_current(annotator, "t1")
+    assert not annotator.evaluate("document.body.classList.contains('read-only')")  # a private member, theirs
+
+    manager = browser.new_context(viewport=VIEWPORT).new_page()
+    manager.on("pageerror", lambda error: errors.append(str(error)))
+    open_session(manager, api.url, session, token=tokens["mia"])
+    manager.click("#collections-panel summary")
+    manager.select_option("#collection-select", collection_id)
+    manager.wait_for_selector("#grant-role:not([hidden])")
+    assert manager.is_enabled("#add-members")
+    manager.fill("#grant-user", "vic")
+    manager.select_option("#grant-role-select", "viewer")
+    manager.click("#grant-role-button")
+    manager.wait_for_selector("#collection-roles:has-text('vic viewer')")
+    assert [(r["user"], r["role"]) for r in api.client.get(f"{base}/roles").json()][-1] == ("vic", "viewer")
+    api.client.put(f"{base}/members/m1/assignee", json={"user": None}).raise_for_status()
+    manager.select_option("#collection-select", "")
+    manager.select_option("#collection-select", collection_id)
+    manager.wait_for_selector('#member-list li[data-member-id="m1"]:not(:has-text("· ann"))')
+    manager.click("#assign-evenly")  # the one annotator gets the member again
+    manager.wait_for_selector('#member-list li[data-member-id="m1"]:has-text("· ann")')
+    assert api.client.get(f"{base}/assignments").json()["annotators"][0]["user"] == "ann"
+    assert not errors, errors
