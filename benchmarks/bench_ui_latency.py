@@ -145,6 +145,7 @@ def measure_latency(
             for part, key in (("edit_request", "editMs"), ("transfer", "transferMs"), ("draw", "drawMs"))
         },
         "server_solve_median_ms": percentile([s["solveMs"] for s in samples], 50),
+        "requests_per_click": max(s.get("requests", 2) for s in samples),
         "samples_ms": total,
     }
 

@@ -114,6 +114,7 @@ def test_click_curves_delete_refine_and_download(page, demo):
         assert new[0]["spec"]["source"] == clicked and new[0]["spec"]["target"] == clicked
         assert new[0]["tracer"] == "geodesic" and len(new[0]["path_source"]) >= 2
         assert sample["kind"] == "add" and sample["totalMs"] > 0
+        assert sample["requests"] == 1, sample  # the edit's answer carried the texture: no transfer read
         known.add(new[0]["id"])
         added.append(new[0]["id"])
     # One curve may agree with the map already and recolour little; three between far apart points do not.

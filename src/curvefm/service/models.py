@@ -16,6 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from curvefm.collection import CollectionRecord, MemberStatus
 from curvefm.fmap import DEFAULT_K
 from curvefm.morphometrics import SnappedPoint
+from curvefm.service.carried import CarriedFunction
 from curvefm.session import (
     EXAMPLE_PATHS,
     NAME_LENGTH,
@@ -133,6 +134,7 @@ class SessionSummary(BaseModel):
 class CurveEdit(BaseModel):
     curve: CurveRecord | None = Field(None, description="the stored curve with its traced paths (file ids)")
     map: MapSummary
+    carried: CarriedFunction | None = Field(None, description="the function ?carry= asked for, through the new map")
 
 
 class MarkupsImported(BaseModel):

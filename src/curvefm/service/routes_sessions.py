@@ -5,11 +5,12 @@ from __future__ import annotations
 
 import contextlib
 import io
+from dataclasses import dataclass
 from functools import partial
 from typing import Annotated, Literal
 
 import numpy as np
-from fastapi import APIRouter, File, Header, Query, Response, UploadFile
+from fastapi import APIRouter, Depends, File, Header, Query, Response, UploadFile
 from pydantic import StringConstraints
 from pydantic.json_schema import SkipJsonSchema
 from starlette.concurrency import run_in_threadpool
@@ -35,6 +36,7 @@ from curvefm.morphometrics import (
 from curvefm.records.common import MAX_PAGE, Page
 from curvefm.records.sessions import SessionSummary as RecordSummary
 from curvefm.service.auth import AUTHENTICATED, CurrentUser
+from curvefm.service.carried import CarriedFunction, CarriedKind, carried
 from curvefm.service.deps import (
     JOB_ERRORS,
     Services,
@@ -194,6 +196,37 @@ def delete_session(session_id: str, services: ServicesDep, user: CurrentUser) ->
     return Response(status_code=204)
 
 
+FILE_IDS = r"^[0-9]{1,10}(,[0-9]{1,10})*$"  # ten digits at most: no id beyond int64 reaches numpy
+RESOLUTION = Query(
+    description="full: a row per target vertex; display: a row per vertex of the target as GET "
+    "/shapes/{id}/mesh draws it (its display copy when it has one), as the web UI asks"
+)
+Carry = Annotated[
+    CarriedKind | None,
+    Query(
+        description="also carry this source function to the target through the new map, in the answer's "
+        "``carried`` (as GET /sessions/{id}/transfer gives it, compactly): a click then costs the page one request"
+    ),
+]
+
+
+@dataclass
+class CarryQuery:
+    """An edit's ``?carry=`` and ``&resolution=``: what its answer carries besides the curve and the map summary."""
+
+    carry: Carry = None
+    resolution: Annotated[Literal["full", "display"], RESOLUTION] = "full"
+
+    def answer(self, services: Services, session_id: str) -> CarriedFunction | None:
+        if self.carry is None:
+            return None
+        transferred = services.sessions.transfer(session_id, self.carry, display=self.resolution == "display")
+        return carried(self.carry, transferred)
+
+
+CarryDep = Annotated[CarryQuery, Depends()]
+
+
 # The curve edits are the hot path: async routes doing their blocking work (locks, tracing, the durable write) in
 # one trip to the thread pool; a plain route would take a second trip to validate its response.
 @router.post("/sessions/{session_id}/curves", status_code=201, response_model=CurveEdit, responses=ERRORS)
@@ -202,6 +235,7 @@ async def add_curve(
     body: CurveSpec,
     services: ServicesDep,
     user: CurrentUser,
+    carry: CarryDep,
     curve_id: Annotated[
         str | None,
         Query(
@@ -217,35 +251,52 @@ async def add_curve(
     if_match: IfMatch = None,
 ) -> CurveEdit:
     """Trace a curve pair (waypoints joined by the tracer, or ``explicit`` vertex paths; file ids), update
-    both maps, store the session, then answer with the traced paths and the new map summary."""
+    both maps, store the session, then answer with the traced paths and the new map summary; with ``carry``, also
+    the function carried through the new map (``carried``, at ``resolution``), as the web UI asks."""
 
     def edit() -> CurveEdit:
         session_for(services, user, session_id, "edit")
         curve, summary = services.sessions.add_curve(session_id, body, curve_id, position, expected_revision(if_match))
-        return CurveEdit(curve=curve, map=summary)
+        return CurveEdit(curve=curve, map=summary, carried=carry.answer(services, session_id))
 
     return await run_in_threadpool(edit)
 
 
 @router.put("/sessions/{session_id}/curves/{curve_id}", response_model=CurveEdit, responses=ERRORS)
 async def replace_curve(
-    session_id: str, curve_id: str, body: CurveSpec, services: ServicesDep, user: CurrentUser, if_match: IfMatch = None
+    session_id: str,
+    curve_id: str,
+    body: CurveSpec,
+    services: ServicesDep,
+    user: CurrentUser,
+    carry: CarryDep,
+    if_match: IfMatch = None,
 ) -> CurveEdit:
+    """Trace the curve pair again from a new spec; answers as ``POST /sessions/{id}/curves`` does."""
+
     def edit() -> CurveEdit:
         session_for(services, user, session_id, "edit")
         curve, summary = services.sessions.replace_curve(session_id, curve_id, body, expected_revision(if_match))
-        return CurveEdit(curve=curve, map=summary)
+        return CurveEdit(curve=curve, map=summary, carried=carry.answer(services, session_id))
 
     return await run_in_threadpool(edit)
 
 
 @router.delete("/sessions/{session_id}/curves/{curve_id}", response_model=CurveEdit, responses=ERRORS)
 async def remove_curve(
-    session_id: str, curve_id: str, services: ServicesDep, user: CurrentUser, if_match: IfMatch = None
+    session_id: str,
+    curve_id: str,
+    services: ServicesDep,
+    user: CurrentUser,
+    carry: CarryDep,
+    if_match: IfMatch = None,
 ) -> CurveEdit:
+    """Remove a curve and update both maps; answers with the new map summary (and ``carried``, as for an add)."""
+
     def edit() -> CurveEdit:
         session_for(services, user, session_id, "edit")
-        return CurveEdit(map=services.sessions.remove_curve(session_id, curve_id, expected_revision(if_match)))
+        summary = services.sessions.remove_curve(session_id, curve_id, expected_revision(if_match))
+        return CurveEdit(map=summary, carried=carry.answer(services, session_id))
 
     return await run_in_threadpool(edit)
 
@@ -279,11 +330,6 @@ def _float32_rows(headers: dict) -> dict:
     return {200: {"content": binary, "headers": headers}, **ERRORS}
 
 
-FILE_IDS = r"^[0-9]{1,10}(,[0-9]{1,10})*$"  # ten digits at most: no id beyond int64 reaches numpy
-RESOLUTION = Query(
-    description="full: a row per target vertex; display: a row per vertex of the target as GET "
-    "/shapes/{id}/mesh draws it (its display copy when it has one), as the web UI asks"
-)
 TRANSFER_HEADERS = {
     "X-Shape": {"description": "n,d: rows (target vertices) and values per row", "schema": {"type": "string"}},
     "X-Revision": {"description": "the session revision the map had", "schema": {"type": "string"}},

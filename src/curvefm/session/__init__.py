@@ -33,6 +33,7 @@ from curvefm.session.editing import (
     SolveStatement,
     StatedMaps,
     TransferFunction,
+    Transferred,
     check_revision,
     source_function,
 )
@@ -99,6 +100,7 @@ __all__ = [
     "StatedMaps",
     "Sharing",
     "TransferFunction",
+    "Transferred",
     "UnknownSession",
     "UnknownShape",
     "VertexId",

@@ -60,6 +60,30 @@ const enc = encodeURIComponent;
 /** An edit based on ``revision`` of the session: refused with 409 (the body's revision is the current one) when
  * someone changed the session since. */
 const basedOn = (revision) => ({ "If-Match": `"${revision}"` });
+const carried = (carry) => new URLSearchParams(carry ? { carry, resolution: "display" } : {});
+
+function curvePath(id, curveId, carry) {
+  const query = carried(carry);
+  return `/sessions/${enc(id)}/curves/${enc(curveId)}${query.size ? `?${query}` : ""}`;
+}
+
+/** An edit's ``carried`` function as the transfer read gives it: { values, columns, revision, solveMs,
+ * priorPending } (its 16-bit codes scaled back per column). */
+export function decodeCarried(carried) {
+  const text = atob(carried.codes);
+  const codes = new Uint16Array(text.length / 2);
+  for (let i = 0; i < codes.length; i++) codes[i] = text.charCodeAt(2 * i) | (text.charCodeAt(2 * i + 1) << 8);
+  const { columns, offset, step } = carried;
+  const values = new Float32Array(codes.length);
+  for (let i = 0; i < codes.length; i++) values[i] = offset[i % columns] + step[i % columns] * codes[i];
+  return {
+    values,
+    columns,
+    revision: carried.revision,
+    solveMs: carried.solve_ms,
+    priorPending: carried.prior_pending,
+  };
+}
 
 export const api = {
   health: () => request("GET", "/health"),
@@ -99,18 +123,19 @@ export const api = {
   renameSession: (id, name) => request("PATCH", `/sessions/${enc(id)}`, { json: { name } }),
   deleteSession: (id) => request("DELETE", `/sessions/${enc(id)}`, { as: "none" }),
   /** Add a curve to revision ``revision`` of the session; undoing a delete gives back its id and place: { curveId,
-   * position } (both optional). */
-  addCurve(id, revision, spec, { curveId = null, position = null } = {}) {
-    const query = new URLSearchParams();
+   * position } (both optional). carry ("uv" or "xyz", or null): the answer's ``carried`` holds that function
+   * through the new map at the display resolution (decode it with decodeCarried), which saves the transfer read. */
+  addCurve(id, revision, spec, { curveId = null, position = null, carry = null } = {}) {
+    const query = carried(carry);
     if (curveId !== null) query.set("curve_id", curveId);
     if (position !== null) query.set("position", String(position));
     const path = `/sessions/${enc(id)}/curves${query.size ? `?${query}` : ""}`;
     return request("POST", path, { json: spec, headers: basedOn(revision) });
   },
-  replaceCurve: (id, revision, curveId, spec) =>
-    request("PUT", `/sessions/${enc(id)}/curves/${enc(curveId)}`, { json: spec, headers: basedOn(revision) }),
-  deleteCurve: (id, revision, curveId) =>
-    request("DELETE", `/sessions/${enc(id)}/curves/${enc(curveId)}`, { headers: basedOn(revision) }),
+  replaceCurve: (id, revision, curveId, spec, carry = null) =>
+    request("PUT", curvePath(id, curveId, carry), { json: spec, headers: basedOn(revision) }),
+  deleteCurve: (id, revision, curveId, carry = null) =>
+    request("DELETE", curvePath(id, curveId, carry), { headers: basedOn(revision) }),
   /** The URL of the session's changes as Server-Sent Events (GET /sessions/{id}/events), for an EventSource. */
   eventsUrl: (id) => `/sessions/${enc(id)}/events`,
   map: (id) => request("GET", `/sessions/${enc(id)}/map`),

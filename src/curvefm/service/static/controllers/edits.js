@@ -20,24 +20,24 @@ import { showMapChoice, showSessionEntry, showStatus } from "../views/page.js";
 import { paint, viewports } from "../views/viewports.js";
 import { refreshCollection } from "./collections.js";
 import { resync } from "./connection.js";
-import { carriedFunction } from "./feedback.js";
+import { carriedFromAnswer, carriedFunction } from "./feedback.js";
 import { refreshQuality } from "./quality.js";
 
 /** The session's edits: call the service, then keep the local record in step with its answer. */
 export const edits = {
   /** place: { curveId, position } of a deleted curve brought back (undo), else a new curve at the end. */
   async add(spec, place = {}) {
-    const edit = await api.addCurve(state.session.id, state.session.revision, spec, place);
+    const edit = await api.addCurve(state.session.id, state.session.revision, spec, { ...place, carry: carry() });
     curveAdded(edit.curve, place.position ?? undefined);
     return edit;
   },
   async remove(curveId) {
-    const edit = await api.deleteCurve(state.session.id, state.session.revision, curveId);
+    const edit = await api.deleteCurve(state.session.id, state.session.revision, curveId, carry());
     curveRemoved(curveId);
     return edit;
   },
   async replace(curveId, spec) {
-    const edit = await api.replaceCurve(state.session.id, state.session.revision, curveId, spec);
+    const edit = await api.replaceCurve(state.session.id, state.session.revision, curveId, spec, carry());
     curveReplaced(curveId, edit.curve);
     return edit;
   },
@@ -50,6 +50,12 @@ export const edits = {
     return edit;
   },
 };
+
+/** What an edit's answer should carry: the function the target shows, unless it needs a region (the indicator),
+ * which the transfer read after the edit brings. */
+function carry() {
+  return state.fn === "indicator" ? null : state.fn;
+}
 
 let lastEdit = Promise.resolve();
 
@@ -77,7 +83,10 @@ export async function runEdit(clickTime, kind, failure, perform) {
     if (state.map === "pointwise") setMap("functional"); // the refined map belongs to an older revision
     showMapChoice();
     showSessionEntry();
-    const [carried] = await Promise.all([carriedFunction(), placeCurves()]); // the new paths drawn with the texture
+    // the new paths drawn with the texture; the answer carries it unless the page asked for another function since
+    const answered = edit.carried?.function === state.fn;
+    const shown = answered ? carriedFromAnswer(edit.carried) : carriedFunction();
+    const [carried] = await Promise.all([shown, placeCurves()]);
     const fetchedAt = performance.now();
     showCurves();
     showPending();
@@ -92,6 +101,7 @@ export async function runEdit(clickTime, kind, failure, perform) {
       transferMs: fetchedAt - editedAt,
       drawMs: drawnAt - fetchedAt,
       solveMs: carried.solveMs,
+      requests: answered ? 1 : 2, // the edit alone, or the edit and the transfer read
     });
     refreshQuality(); // after the texture: the reverse map it needs is solved while the user looks
   } catch (error) {

@@ -1,6 +1,6 @@
 // What the surfaces show after every change: the chosen source function carried to the target, through the live
 // map from the service or through the refined pointwise map, timed from the click that asked for it.
-import { api } from "../api.js";
+import { api, decodeCarried } from "../api.js";
 import { pullBack } from "../functions.js";
 import { nextTransferTicket, recordSample, state } from "../store.js";
 import { report } from "../views/messages.js";
@@ -31,6 +31,14 @@ export async function carriedFunction() {
   const vertices = fn === "indicator" ? state.region.fileIds : null;
   const { values, solveMs, priorPending } = await api.transfer(state.session.id, fn, vertices);
   if (ticket !== state.transferTicket) return null;
+  if (priorPending) showWhenPriorLands(ticket);
+  return { rows: values, solveMs, priorPending };
+}
+
+/** carriedFunction from an edit's answer that carried it (no read): { rows, solveMs, priorPending }. */
+export function carriedFromAnswer(carried) {
+  const ticket = nextTransferTicket();
+  const { values, solveMs, priorPending } = decodeCarried(carried);
   if (priorPending) showWhenPriorLands(ticket);
   return { rows: values, solveMs, priorPending };
 }
