@@ -12,6 +12,7 @@ repositories lock the rows they check (``SELECT ... FOR UPDATE``) or make the ch
 
 from __future__ import annotations
 
+import contextlib
 import os
 import threading
 from collections.abc import Iterator
@@ -54,6 +55,9 @@ class Database:
     def __init__(self, url: str, echo: bool = False):
         self.url = make_url(url)
         self.is_sqlite = self.url.get_backend_name() == "sqlite"
+        # SQLite has one writer at a time, and a thread that finds it busy sleeps in growing steps (up to 100 ms)
+        # however soon the writer ends: this process's writers wait their turn here instead, handed on at once.
+        self._writers = threading.RLock() if self.is_sqlite else contextlib.nullcontext()
         if self.is_sqlite:
             path = self.url.database
             if path and path != ":memory:":
@@ -82,7 +86,7 @@ class Database:
     @contextmanager
     def write(self) -> Iterator[Connection]:
         """A transaction that commits when the block ends (rolls back when it raises)."""
-        with self.engine.connect() as conn:
+        with self._writers, self.engine.connect() as conn:
             if self.is_sqlite:
                 conn = conn.execution_options(sqlite_immediate=True)
             with conn.begin():
