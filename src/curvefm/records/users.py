@@ -180,7 +180,7 @@ class Users:
             conn.execute(update(m.ExternalIdentity).where(*identity).values(last_login_at=moment))
             return _user(row), False
         values = _new_user(self._free_name(conn, name), False, new_token())
-        user_id = conn.execute(insert(m.User).values(**values)).inserted_primary_key[0]
+        user_id = conn.execute(insert(m.User).values(**values).returning(m.User.id)).scalar_one()
         conn.execute(
             insert(m.ExternalIdentity).values(
                 issuer=issuer, subject=subject, user_id=user_id, created_at=moment, last_login_at=moment

@@ -32,6 +32,7 @@ from curvefm.service.headers import SecurityHeaders, docs_csp, ui_csp
 from curvefm.service.hints import install_hints
 from curvefm.service.hosts import HostCheck
 from curvefm.service.logs import log_config
+from curvefm.service.oidc import SignInState
 from curvefm.service.openapi import install_openapi
 from curvefm.service.ratelimit import RateLimit, make_buckets
 from curvefm.service.session_events import SessionEvents
@@ -135,7 +136,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     install_hints(app)
     install_docs_login(app)
     # the last added runs first: headers on every answer, then the Host check, the rate limit, credentials
-    # (of writes), the body size
+    # (of writes), the body size, the single sign-on's state cookie
+    app.add_middleware(SignInState, settings=settings)
     app.add_middleware(BodySizeLimit, settings=settings)
     app.add_middleware(CredentialsFirst)  # before the body is read, after the rate limit
     if settings.rate_limit:
