@@ -47,9 +47,10 @@ once), fetch the map or a transferred function, and request pointwise maps (a jo
 ids in the uploaded files. Errors are JSON: `{"error": kind, "detail": message}`; an internal error (500)
 adds an `error_id` that the server log files its details under.
 
-Every route but `GET /health` needs credentials: `Authorization: Bearer TOKEN` (`curvefm users add NAME` prints a
-token), or the login cookie the web page gets for one. Shapes are shared by all users; sessions, jobs and results
-belong to their owner and are private unless shared."""
+Every route but `GET /health` and the sign-in's own (`/auth/methods`, `/auth/oidc/*`) needs credentials:
+`Authorization: Bearer TOKEN` (`curvefm users add NAME` prints a token; `POST /auth/token` makes one for the caller),
+or the login cookie the web page gets for one, or for a single sign-on at the lab's OpenID Connect provider.
+Shapes are shared by all users; sessions, jobs and results belong to their owner and are private unless shared."""
 
 
 class BodyTooLarge(HTTPException):

@@ -122,7 +122,7 @@ def start_services(settings: Settings) -> Services:
         database,
         Shapes(database),
         UploadSlots(settings),
-        SingleSignOn(settings) if settings.oidc_issuer else None,
+        SingleSignOn(settings) if settings.sso else None,
     )
     expiry = start_expiry(queue, store.root, settings.job_ttl_s, settings.expiry_interval_s)
     services.stop_events.append(expiry)

@@ -169,7 +169,7 @@ class SignInState:
         self.sessions: dict[tuple[str, bool], SessionMiddleware] = {}
 
     async def __call__(self, scope, receive, send) -> None:
-        if scope["type"] != "http" or not scope["path"].startswith(PATHS + "/") or not self.settings.oidc_issuer:
+        if scope["type"] != "http" or not scope["path"].startswith(PATHS + "/") or not self.settings.sso:
             await self.app(scope, receive, send)
             return
         await self._session(scope)(scope, receive, send)
