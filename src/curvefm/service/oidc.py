@@ -34,14 +34,13 @@ from joserfc.errors import JoseError
 from starlette.middleware.sessions import SessionMiddleware
 
 from curvefm.errors import CurvefmError, InvalidInput, Unauthenticated, Unavailable, shown
-from curvefm.service.auth import COOKIE_PREFIX, cookie_name
 from curvefm.service.errors import error_response, status_of
 from curvefm.service.settings import Settings, env_name
 
 log = logging.getLogger("curvefm.service")
 
 PATHS = "/auth/oidc"
-STATE_COOKIE_PREFIX = "curvefm_oidc_"
+STATE_COOKIE = "curvefm_oidc"
 CLOCK_LEEWAY_S = 60  # between our clock and the provider's, for the ID token's times
 FAILED_PAGE = """<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>Signing in failed - curvefm</title>
@@ -72,9 +71,11 @@ class SingleSignOn:
         )
 
     async def redirect(self, request: Request) -> Response:
-        """The answer that sends the browser to the provider's sign-in."""
+        """The answer that sends the browser to the provider's sign-in. A browser has one sign-in under way, its
+        latest: the state cookie stays small however often one starts."""
         with provider_errors(self):
             await self._metadata()
+            request.session.clear()
             return await self.client.authorize_redirect(request, str(request.url_for("oidc_callback")))
 
     async def identity(self, request: Request) -> tuple[str, str, str]:
@@ -161,12 +162,14 @@ def sign_in_failed(request: Request, exc: CurvefmError) -> Response:
 class SignInState:
     """Starlette's session middleware, on the ``/auth/oidc`` paths only (nothing else reads or pays for it): it
     keeps a sign-in's state, nonce and PKCE verifier from the redirect to the provider until the browser comes back
-    (SameSite=Lax: that return is a navigation from the provider's site). One cookie name per port, as the login
-    cookie's; its key is derived from the data directory's signing key."""
+    (SameSite=Lax: that return is a navigation from the provider's site), ``Secure`` over HTTPS. Its key is
+    derived from the data directory's signing key. One cookie name for every port (a name per port, as the login
+    cookie has, would let made-up Host ports make middlewares without end): two services of one host share it
+    only while a person signs in at both at once, and then the first sign-in asks to start again."""
 
     def __init__(self, app, settings: Settings):
         self.app, self.settings = app, settings
-        self.sessions: dict[tuple[str, bool], SessionMiddleware] = {}
+        self.sessions: dict[bool, SessionMiddleware] = {}  # by whether the request came over HTTPS
 
     async def __call__(self, scope, receive, send) -> None:
         if scope["type"] != "http" or not scope["path"].startswith(PATHS + "/") or not self.settings.sso:
@@ -175,18 +178,16 @@ class SignInState:
         await self._session(scope)(scope, receive, send)
 
     def _session(self, scope) -> SessionMiddleware:
-        request = Request(scope)
-        name = cookie_name(request).replace(COOKIE_PREFIX, STATE_COOKIE_PREFIX)
-        https = request.url.scheme == "https"
-        if (name, https) not in self.sessions:
+        https = Request(scope).url.scheme == "https"
+        if https not in self.sessions:
             key = hmac.new(scope["app"].state.services.logins.key, b"oidc sign-in state", hashlib.sha256)
-            self.sessions[(name, https)] = SessionMiddleware(
+            self.sessions[https] = SessionMiddleware(
                 self.app,
                 secret_key=key.hexdigest(),
-                session_cookie=name,
+                session_cookie=STATE_COOKIE,
                 max_age=int(self.settings.oidc_login_timeout_s),
                 path=PATHS,
                 same_site="lax",
                 https_only=https,
             )
-        return self.sessions[(name, https)]
+        return self.sessions[https]
