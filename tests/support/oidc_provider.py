@@ -6,7 +6,8 @@ loopback, over HTTPS as OpenID Connect requires (a certificate for 127.0.0.1 fro
 
 ``POST /test/tamper`` ``{"id_token": MODE}`` makes the token endpoint hand out broken ID tokens from then on, as a
 faulty or hostile provider would: ``audience`` (issued to another client), ``signature`` (signed by a key the JWKS
-does not have, under the published key's id), ``expired``, or ``none`` (correct again). Nothing else is faked.
+does not have, under the published key's id), ``expired``, ``long-subject`` (a ``sub`` past OpenID Connect's 255
+characters), or ``none`` (correct again). Nothing else is faked.
 
 Run as ``python oidc_provider.py PORT CERTIFICATE KEY CLIENT_ID CLIENT_SECRET REDIRECT_URI...``.
 """
@@ -152,6 +153,8 @@ def tampered(id_token: str, mode: str, signing_key) -> str:
         claims["aud"] = "another-application"
     elif mode == "expired":
         claims["iat"], claims["exp"] = int(time.time()) - 7200, int(time.time()) - 3600
+    elif mode == "long-subject":
+        claims["sub"] = "x" * 300
     elif mode == "signature":
         key = RSAKey(key=RSA.generate(2048), alg="RS256", kid=KEY_ID)
     return IdToken(**claims).to_jwt([key], "RS256")

@@ -41,6 +41,7 @@ log = logging.getLogger("curvefm.service")
 
 PATHS = "/auth/oidc"
 STATE_COOKIE = "curvefm_oidc"
+MAX_SUBJECT_CHARS = 255  # OpenID Connect Core 2: "It MUST NOT exceed 255 ASCII characters in length"
 CLOCK_LEEWAY_S = 60  # between our clock and the provider's, for the ID token's times
 FAILED_PAGE = """<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>Signing in failed - curvefm</title>
@@ -88,9 +89,12 @@ class SingleSignOn:
             claims = token.get("userinfo")
             if claims is None:
                 raise Unauthenticated(f"the provider {self.issuer} answered without an ID token")
+            subject = claims["sub"]
+            if not isinstance(subject, str) or not 0 < len(subject) <= MAX_SUBJECT_CHARS:
+                raise Unauthenticated(f"the provider {self.issuer} gave no subject of 1 to 255 characters")
             if not any(claims.get(name) for name in (self.name_claim, "email")):
-                claims = {**await self._userinfo(token, claims["sub"]), **claims}
-        return self.issuer, claims["sub"], self._wanted_name(claims)
+                claims = {**await self._userinfo(token, subject), **claims}
+        return self.issuer, subject, self._wanted_name(claims)
 
     async def _metadata(self) -> None:
         metadata = await self.client.load_server_metadata()
@@ -111,7 +115,7 @@ class SingleSignOn:
         for value in (claims.get(self.name_claim), str(claims.get("email") or "").partition("@")[0]):
             if isinstance(value, str) and value:
                 return value
-        return str(claims["sub"])
+        return claims["sub"]
 
 
 @contextmanager

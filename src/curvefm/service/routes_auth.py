@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Query, Request, Response
+from fastapi import APIRouter, Depends, Request, Response
 from fastapi.responses import RedirectResponse
 from starlette.concurrency import run_in_threadpool
 
@@ -90,17 +90,10 @@ async def oidc_login(request: Request, services: ServicesDep) -> Response:
         ),
     },
 )
-async def oidc_callback(
-    request: Request,
-    services: ServicesDep,
-    # what the provider sends back (OAuth 2.0, RFC 6749 4.1.2); Authlib reads them from the request
-    code: Annotated[str | None, Query(max_length=4096)] = None,
-    state: Annotated[str | None, Query(max_length=4096)] = None,
-    error: Annotated[str | None, Query(max_length=4096)] = None,
-    error_description: Annotated[str | None, Query(max_length=4096)] = None,
-) -> Response:
-    """Where the provider sends the browser back (public): the sign-in is checked, the person's user found (made
-    at their first sign-in, not an admin), and the browser gets the login cookie and goes to the web page."""
+async def oidc_callback(request: Request, services: ServicesDep) -> Response:
+    """Where the provider sends the browser back (public), with ``code`` and ``state``, or ``error`` and
+    ``error_description`` (OAuth 2.0, RFC 6749 4.1.2): the sign-in is checked, the person's user found (made at
+    their first sign-in, not an admin), and the browser gets the login cookie and goes to the web page."""
     sso = _configured(services)
     try:
         issuer, subject, name = await sso.identity(request)
