@@ -1,9 +1,9 @@
 """Single sign-on as a person does it, in real Chromium: the page of a real ``curvefm serve`` offers "Sign in with
 ..." (its OpenID Connect provider configured), the browser goes to a real provider process on loopback (pyop over
 HTTPS, :mod:`support.oidc_provider`), signs in through its form and comes back to the page logged in, as a user
-made at that first sign-in; then makes a token for scripts. The page is at ``localhost`` and the provider at
-``127.0.0.1``: two sites, as a lab's service and its university's provider are, so the browser's cross-site cookie
-rules apply to the return."""
+made at that first sign-in; then makes a token for scripts, and logs out. The page is at ``localhost`` and the
+provider at ``127.0.0.1``: two sites, as a lab's service and its university's provider are, so the browser's
+cross-site cookie rules apply to the return."""
 
 from __future__ import annotations
 
@@ -72,6 +72,9 @@ def test_signing_in_at_the_provider_comes_back_logged_in(server, browser):
     assert page.locator("#token-box").is_hidden() and page.locator("#new-token").inner_text() == ""
     page.reload()
     page.locator("#user-box").wait_for(state="visible", timeout=30_000)  # the login cookie was renewed
+    page.click("#logout-button")
+    page.locator("#sso-login").wait_for(state="visible", timeout=30_000)  # offered again
+    assert page.locator("#user-box").is_hidden()
     context.close()
 
 

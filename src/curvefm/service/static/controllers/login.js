@@ -3,13 +3,14 @@
 // Where the lab's single sign-on is configured, the login banner offers it (/auth/oidc/login, which comes back
 // with the cookie set). A logged-in user may make a new token for scripts.
 import { api } from "../api.js";
-import { loggedIn, loggedOut, subscribe } from "../store.js";
-import { showLogin, showNewToken, showSingleSignOn } from "../views/login.js";
+import { loggedIn, loggedOut, state, subscribe } from "../store.js";
+import { hideNewToken, showLogin, showNewToken, showSingleSignOn } from "../views/login.js";
 import { report, toast } from "../views/messages.js";
 
 /** Follow the login (state.user, state.loggedOut), which requests change. */
 export function watchLogin() {
   subscribe("login", showLogin);
+  subscribe("login", () => state.loggedOut && offerSingleSignOn());
 }
 
 /** Log in with the URL's token, else find out whether a cookie from before still logs in; resolves to whether
@@ -26,7 +27,6 @@ export async function logIn() {
     return true;
   } catch (error) {
     if (error.status !== 401) report(error, "Logging in failed");
-    await offerSingleSignOn();
     return false;
   }
 }
@@ -54,6 +54,7 @@ export async function makeToken() {
 export async function logOut() {
   try {
     await api.logout();
+    hideNewToken();
     loggedOut();
     toast("Logged out.");
   } catch (error) {
