@@ -195,9 +195,10 @@ def test_a_broken_id_token_is_refused(lab, mode, says):
     assert client.get("/auth/me").status_code == 401
 
 
-def test_a_provider_that_is_down_is_a_503(processes, tmp_path):
-    """Down before the first sign-in (discovery fails), then down between its sign-in form and the code's
-    exchange (the token endpoint fails)."""
+def test_a_provider_that_is_down_or_names_another_issuer_is_a_503(processes, tmp_path):
+    """Down before the first sign-in (discovery fails); up, but set up with an issuer URL other than the one it
+    states (a trailing slash); then down between its sign-in form and the code's exchange (the token endpoint
+    fails)."""
     port, provider_port = free_port(), free_port()
     unstarted = {
         "CURVEFM_OIDC_ISSUER": f"https://127.0.0.1:{provider_port}",
@@ -211,6 +212,11 @@ def test_a_provider_that_is_down_is_a_503(processes, tmp_path):
 
     provider = start_provider(processes, provider_port, redirect_uris(port))
     processes.kill(api.process)  # started again, with the provider's client credentials and CA
+    slashed = {**sso_env(provider), "CURVEFM_OIDC_ISSUER": provider.issuer + "/"}
+    api = processes.api(tmp_path / "data", env=slashed, port=port)
+    says = f"says its issuer is '{provider.issuer}'"
+    assert_refused(browser(api).get("/auth/oidc/login"), 503, says, provider.client_secret)
+    processes.kill(api.process)
     api = processes.api(tmp_path / "data", env=sso_env(provider), port=port)
     client = browser(api)
     back = provider.sign_in(begin(client), "ada")
