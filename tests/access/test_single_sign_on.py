@@ -116,18 +116,26 @@ def test_the_authorization_code_flow_with_pkce_signs_a_person_in(lab):
     assert [e["detail"] for e in made] == [{"single_sign_on": provider.issuer}]
 
 
+def userinfo_requests(provider) -> int:
+    return provider.log.read_text().count("/userinfo HTTP")
+
+
 def test_a_second_sign_in_finds_the_user_of_the_first(lab):
     api, provider = lab
+    asked = userinfo_requests(provider)
     first = sign_in(api, provider, "ada").get("/auth/me").json()
+    assert userinfo_requests(provider) == asked  # the ID token named her
     before = {u.name for u in users_of(api.data_dir).list()}
     assert sign_in(api, provider, "ada").get("/auth/me").json() == first
     assert {u.name for u in users_of(api.data_dir).list()} == before
 
 
 def test_without_a_name_claim_in_the_id_token_the_userinfo_names_the_user(lab):
-    """pyop puts the profile and e-mail claims in its userinfo only; grace has no preferred_username."""
+    """grace has no preferred_username: her ID token names nobody, the userinfo has her e-mail address."""
     api, provider = lab
+    asked = userinfo_requests(provider)
     assert sign_in(api, provider, "grace").get("/auth/me").json() == {"name": "grace.hopper", "admin": False}
+    assert userinfo_requests(provider) == asked + 1
 
 
 def test_a_signed_in_person_makes_a_token_for_scripts(lab):

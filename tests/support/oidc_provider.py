@@ -30,7 +30,8 @@ USERS = {
     "ada": {"password": "analytical-engine", "preferred_username": "ada", "email": "ada@uni.example"},
     "grace": {"password": "compiler-1952", "email": "grace.hopper@uni.example"},  # no preferred_username
 }
-"""The people who can sign in, with the claims the provider gives about them (its userinfo)."""
+"""The people who can sign in, with the claims the provider gives about them: all in its userinfo,
+preferred_username in the ID token too."""
 KEY_ID = "test-key-1"
 LOGIN_FORM = """<!doctype html><html><head><title>Test identity provider</title></head><body>
 <h1>Test identity provider</h1><form method="post" action="/login">
@@ -77,6 +78,11 @@ def create_app(issuer: str, client_id: str, client_secret: str, redirect_uris: l
     state = AuthorizationState(HashBasedSubjectIdentifierFactory(secrets.token_hex(8)))
     provider = Provider(signing_key, configuration, state, clients, Userinfo(claims))
     pending: dict[str, object] = {}  # authentication requests waiting for their user to sign in
+
+    def in_id_token(user: str, client: str) -> dict:
+        """preferred_username in the ID token, as Keycloak does (pyop puts scope claims in its userinfo only)."""
+        return {k: v for k, v in claims[user].items() if k == "preferred_username"}
+
     tamper = {"id_token": "none"}
     app = Flask("oidc_provider")
 
@@ -114,7 +120,9 @@ def create_app(issuer: str, client_id: str, client_secret: str, redirect_uris: l
     @app.post("/token")
     def token():
         try:
-            answer = provider.handle_token_request(request.get_data().decode(), request.headers).to_dict()
+            answer = provider.handle_token_request(
+                request.get_data().decode(), request.headers, extra_id_token_claims=in_id_token
+            ).to_dict()
         except InvalidClientAuthentication as exc:
             error = TokenErrorResponse(error="invalid_client", error_description=str(exc))
             return make_response(error.to_json(), 401, {"Content-Type": "application/json"})
@@ -225,6 +233,7 @@ class OidcProvider:
     client_secret: str
     ca: Path
     process: object
+    log: Path
 
     def http(self, **options):
         """An httpx client that trusts the provider's certificate."""
@@ -260,11 +269,12 @@ def start_provider(processes, port: int, redirect_uris: list[str]) -> OidcProvid
     client_id, client_secret = "curvefm-test", "s3cret-" + secrets.token_hex(12)
     args = ["python", __file__, str(port), str(tls.certificate), str(tls.key), client_id, client_secret]
     process = processes.start([*args, *redirect_uris], f"oidc-provider-{port}")
-    provider = OidcProvider(f"https://127.0.0.1:{port}", client_id, client_secret, tls.ca, process)
+    log = processes.folder / f"oidc-provider-{port}.log"
+    provider = OidcProvider(f"https://127.0.0.1:{port}", client_id, client_secret, tls.ca, process, log)
     deadline = time.monotonic() + 60
     with provider.http() as client:
         while time.monotonic() < deadline:
-            assert process.poll() is None, (processes.folder / f"oidc-provider-{port}.log").read_text()[-3000:]
+            assert process.poll() is None, log.read_text()[-3000:]
             try:
                 if client.get(f"{provider.issuer}/.well-known/openid-configuration").status_code == 200:
                     return provider
