@@ -76,6 +76,14 @@ enabled = false
 """
 
 
+NEW_TOKEN = """
+# A new token for its caller ends the token the run sends (tests/access/test_single_sign_on.py covers the route).
+[[operations]]
+include-name = "POST /auth/token"
+enabled = false
+"""
+
+
 def schemathesis_config(api, session_id: str, job: dict, rate_limited: bool) -> str:
     """``schemathesis.toml``: the ids of real resources for the path parameters, so that the cases reach the
     routes' logic instead of their 404s; a rate-limited server may answer any case 429."""
@@ -93,7 +101,7 @@ def schemathesis_config(api, session_id: str, job: dict, rate_limited: bool) -> 
     statuses = json.dumps([*accepted, "400"])
     refused = "".join(OPERATIONS.format(name=name, statuses=statuses) for name in SCHEMA_VALID_BUT_REFUSED)
     checks = CHECKS.format(statuses=json.dumps(accepted))
-    return f"[parameters]\n{lines}{checks}{refused}{CURVE_OPERATIONS}{EVENT_STREAM}"
+    return f"[parameters]\n{lines}{checks}{refused}{CURVE_OPERATIONS}{EVENT_STREAM}{NEW_TOKEN}"
 
 
 def schemathesis_command(

@@ -66,3 +66,20 @@ def test_a_bad_option_is_an_error_naming_it():
 def test_every_setting_has_a_description_and_every_limit_a_field():
     assert all(field.description for field in Settings.model_fields.values())
     assert set(LIMITS) <= set(Settings.model_fields)
+
+
+def test_single_sign_on_needs_its_three_settings_and_never_shows_the_secret(monkeypatch):
+    assert not Settings.from_env().sso
+    monkeypatch.setenv("CURVEFM_OIDC_ISSUER", "https://login.uni.example/realms/lab")
+    monkeypatch.setenv("CURVEFM_OIDC_CLIENT_SECRET", "never-shown-secret")
+    with pytest.raises(InvalidInput) as refused:
+        Settings.from_env()
+    assert "single sign-on needs CURVEFM_OIDC_CLIENT_ID too" in refused.value.message
+    assert "never-shown-secret" not in refused.value.message
+    monkeypatch.setenv("CURVEFM_OIDC_CLIENT_ID", "curvefm")
+    settings = Settings.from_env()
+    assert settings.sso and "never-shown-secret" not in repr(settings)
+    assert settings.oidc_client_secret.get_secret_value() == "never-shown-secret"
+    monkeypatch.setenv("CURVEFM_OIDC_ISSUER", "login.uni.example")
+    with pytest.raises(InvalidInput, match="CURVEFM_OIDC_ISSUER='login.uni.example' is not valid: an http"):
+        Settings.from_env()

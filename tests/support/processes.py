@@ -108,11 +108,17 @@ class Processes:
         return process
 
     def api(
-        self, data_dir: Path, redis_url: str | None = None, env: dict[str, str] | None = None, args=(), user=TEST_USER
+        self,
+        data_dir: Path,
+        redis_url: str | None = None,
+        env: dict[str, str] | None = None,
+        args=(),
+        user=TEST_USER,
+        port: int | None = None,
     ) -> Api:
-        """An API process on ``data_dir``, with a client of ``user`` (None: no user is made, so the server makes
-        its local admin and prints the login URL)."""
-        port = free_port()
+        """An API process on ``data_dir`` and ``port`` (default: a free one), with a client of ``user`` (None: no
+        user is made, so the server makes its local admin and prints the login URL)."""
+        port = port or free_port()
         args = [*API_COMMAND, "--host", "127.0.0.1", "--port", str(port), "--data", str(data_dir), *args]
         if redis_url:
             args += ["--redis-url", redis_url]

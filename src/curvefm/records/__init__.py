@@ -11,6 +11,8 @@ The record model (:mod:`.models`; ``->`` a foreign key, with what happens when t
     users             id PK (stable; a name removed and added again is another user), name (unique among
                       current users), admin, token_sha256 (unique), created_at, token_rotated_at, removed_at
                       (a removed user keeps its row: what it owned keeps an owner nobody inherits)
+    external_identities (issuer, subject) PK, user_id -> users CASCADE, created_at, last_login_at: who signed in
+                      through an OpenID Connect provider (single sign-on) as which user
     shapes            hash PK (the blob meshes/<hash>.npz), bytes, charged_to -> users (RESTRICT; the first
                       uploader, whose byte quota pays), created_at
     shape_uploaders   (shape -> shapes CASCADE, user_id -> users RESTRICT) PK, uploaded_at, seq

@@ -72,6 +72,19 @@ class User(Base):
     )
 
 
+class ExternalIdentity(Base):
+    """A user's identity at an OpenID Connect provider: the provider's ``issuer`` URL and its ``subject`` (the
+    ID token's ``iss`` and ``sub``, which together never change for a person, unlike names or e-mail addresses).
+    A sign-in with a new pair makes a user; later ones find it here."""
+
+    __tablename__ = "external_identities"
+    issuer: Mapped[str] = mapped_column(String(512), primary_key=True)
+    subject: Mapped[str] = mapped_column(String(255), primary_key=True)  # OpenID Connect Core caps sub at 255
+    user_id: Mapped[int] = mapped_column(ForeignKey("users.id", ondelete="CASCADE"), index=True)
+    created_at: Mapped[float] = mapped_column(Double)
+    last_login_at: Mapped[float] = mapped_column(Double)
+
+
 class Shape(Base):
     """A stored mesh (its blob is ``meshes/<hash>.npz``): its name (the uploaded file's; ``""`` until read from the
     blob, for shapes recorded before names were), its size, and the user its bytes are charged to (the first

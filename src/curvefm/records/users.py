@@ -7,6 +7,11 @@ space), so a check comparing names can never take one for the other.
 
 Tokens are ``cfm_`` + ``secrets.token_urlsafe(32)``; only their SHA-256 is stored (unique, indexed: one lookup
 authenticates a request).
+
+A user may also sign in through an OpenID Connect provider (:meth:`Users.sign_in`): its identity there, the pair
+(issuer, subject), is a row of ``external_identities`` pointing at the user that its first sign-in made. Such a
+user has a token like any other (made with it, shown to nobody): the login cookie is bound to it, and the user
+may replace it to get one for scripts.
 """
 
 from __future__ import annotations
@@ -22,7 +27,7 @@ from typing import Any
 from sqlalchemy import Connection, Label, Row, Select, func, insert, select, update
 from sqlalchemy.exc import IntegrityError
 
-from curvefm.errors import Conflict, InvalidInput, NotFound
+from curvefm.errors import Conflict, Forbidden, InvalidInput, NotFound
 from curvefm.records import models as m
 from curvefm.records.common import iso, now
 from curvefm.records.engine import Database
@@ -33,6 +38,11 @@ MAX_TOKEN_LENGTH = 128
 REMOVED = " (removed)"
 """Appended to a removed user's name where a record shows its owner."""
 _TOKEN = re.compile(re.escape(TOKEN_PREFIX) + r"[A-Za-z0-9_-]{20,}")
+_NOT_IN_NAMES = re.compile(r"[^A-Za-z0-9_.-]+")
+SIGN_IN_TRIES = 5
+"""A first sign-in that collides with a concurrent one (same identity, or same wanted name) is tried again."""
+MAX_NAME_SUFFIX = 1000
+FALLBACK_NAME = "user"
 
 
 @dataclass(frozen=True)
@@ -146,6 +156,45 @@ class Users:
             )
         return token
 
+    def sign_in(self, issuer: str, subject: str, name: str) -> tuple[User, bool]:
+        """The user that ``subject`` of the OpenID Connect provider ``issuer`` signs in as, and whether it was made
+        now. The identity's first sign-in makes a user (not an admin) named after ``name`` (:func:`usable_name`),
+        or ``NAME-2``, ``NAME-3``... when a current user has that name: a sign-in never takes over a user it did
+        not make. :class:`Forbidden` when an admin removed the identity's user."""
+        for _ in range(SIGN_IN_TRIES):
+            try:
+                with self.db.write() as conn:
+                    return self._sign_in(conn, issuer, subject, usable_name(name))
+            except IntegrityError:  # a concurrent first sign-in made this identity, or took the name: look again
+                continue
+        raise Conflict("signing in collided with other sign-ins repeatedly; try again")
+
+    def _sign_in(self, conn: Connection, issuer: str, subject: str, name: str) -> tuple[User, bool]:
+        identity = (m.ExternalIdentity.issuer == issuer, m.ExternalIdentity.subject == subject)
+        user_id = conn.execute(select(m.ExternalIdentity.user_id).where(*identity)).scalar()
+        moment = now()
+        if user_id is not None:
+            row = conn.execute(_select().where(m.User.id == user_id, m.User.removed_at.is_(None))).first()
+            if row is None:
+                raise Forbidden("an admin removed the curvefm user of this sign-in; ask an admin of curvefm")
+            conn.execute(update(m.ExternalIdentity).where(*identity).values(last_login_at=moment))
+            return _user(row), False
+        values = _new_user(self._free_name(conn, name), False, new_token())
+        user_id = conn.execute(insert(m.User).values(**values).returning(m.User.id)).scalar_one()
+        conn.execute(
+            insert(m.ExternalIdentity).values(
+                issuer=issuer, subject=subject, user_id=user_id, created_at=moment, last_login_at=moment
+            )
+        )
+        return _user(conn.execute(_select().where(m.User.id == user_id)).one()), True
+
+    def _free_name(self, conn: Connection, name: str) -> str:
+        for number in range(1, MAX_NAME_SUFFIX + 1):
+            candidate = name if number == 1 else f"{name}-{number}"
+            if self.get(candidate, conn) is None:
+                return candidate
+        raise Conflict(f"the names {name}, {name}-2 ... {name}-{MAX_NAME_SUFFIX} are all taken")
+
     def ensure_local_admin(self, name: str = "admin") -> str | None:
         """When there is no user at all, create admin ``name`` and return its token; otherwise None (two
         servers starting at once make one admin: the second finds the first's, or loses on the name)."""
@@ -185,6 +234,13 @@ def owner_name() -> Label[str]:
 def check_name(name: str) -> None:
     if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name) or set(name) == {"."}:
         raise InvalidInput(f"bad user name {name!r}: use 1 to 64 letters, digits, '_', '.' or '-'")
+
+
+def usable_name(text: str) -> str:
+    """A user name made from a provider's claim (``preferred_username``, an e-mail address): each run of other
+    characters becomes ``-``, cut to leave room for a ``-N`` suffix; ``user`` when nothing usable is left."""
+    name = _NOT_IN_NAMES.sub("-", text)[: 64 - len(f"-{MAX_NAME_SUFFIX}")].strip("-")
+    return name if name and set(name) != {"."} else FALLBACK_NAME
 
 
 def redact_tokens(text: str) -> str:

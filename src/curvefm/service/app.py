@@ -32,6 +32,7 @@ from curvefm.service.headers import SecurityHeaders, docs_csp, ui_csp
 from curvefm.service.hints import install_hints
 from curvefm.service.hosts import HostCheck
 from curvefm.service.logs import log_config
+from curvefm.service.oidc import SignInState
 from curvefm.service.openapi import install_openapi
 from curvefm.service.ratelimit import RateLimit, make_buckets
 from curvefm.service.session_events import SessionEvents
@@ -46,9 +47,10 @@ once), fetch the map or a transferred function, and request pointwise maps (a jo
 ids in the uploaded files. Errors are JSON: `{"error": kind, "detail": message}`; an internal error (500)
 adds an `error_id` that the server log files its details under.
 
-Every route but `GET /health` needs credentials: `Authorization: Bearer TOKEN` (`curvefm users add NAME` prints a
-token), or the login cookie the web page gets for one. Shapes are shared by all users; sessions, jobs and results
-belong to their owner and are private unless shared."""
+Every route but `GET /health` and the sign-in's own (`/auth/methods`, `/auth/oidc/*`) needs credentials:
+`Authorization: Bearer TOKEN` (`curvefm users add NAME` prints a token; `POST /auth/token` makes one for the caller),
+or the login cookie the web page gets for one, or for a single sign-on at the lab's OpenID Connect provider.
+Shapes are shared by all users; sessions, jobs and results belong to their owner and are private unless shared."""
 
 
 class BodyTooLarge(HTTPException):
@@ -135,7 +137,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     install_hints(app)
     install_docs_login(app)
     # the last added runs first: headers on every answer, then the Host check, the rate limit, credentials
-    # (of writes), the body size
+    # (of writes), the body size, the single sign-on's state cookie
+    app.add_middleware(SignInState, settings=settings)
     app.add_middleware(BodySizeLimit, settings=settings)
     app.add_middleware(CredentialsFirst)  # before the body is read, after the rate limit
     if settings.rate_limit:

@@ -1,11 +1,13 @@
-"""Who is asking: :func:`current_user`, the dependency of every route but ``GET /health`` (the UI's static files
-are not routes), checked for state-changing requests before their body is read (:class:`CredentialsFirst`).
+"""Who is asking: :func:`current_user`, the dependency of every route but ``GET /health`` and the sign-in's own
+(``/auth/methods``, ``/auth/oidc/*``; the UI's static files are not routes), checked for state-changing requests
+before their body is read (:class:`CredentialsFirst`).
 
 Credentials, the first found wins:
 
 * ``Authorization: Bearer TOKEN``, for programs (``curvefm users add NAME`` prints a token). A wrong one is a
   401 even when a login cookie comes with it.
-* the login cookie (:mod:`curvefm.service.login`) that ``POST /auth/login`` gives the web page for a token. A
+* the login cookie (:mod:`curvefm.service.login`) that ``POST /auth/login`` gives the web page for a token, or
+  single sign-on for a sign-in at the lab's OpenID Connect provider (:mod:`curvefm.service.oidc`). A
   browser attaches it to requests by itself, so a state-changing request (POST, PUT, PATCH, DELETE) that relies
   on it must come with an ``Origin`` equal to the service's own (the scheme and Host it was reached at): a page
   of another site gets 403 (SameSite=Strict already keeps the cookie off cross-site requests in today's

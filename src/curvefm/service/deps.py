@@ -25,6 +25,7 @@ from curvefm.service.errors import error_responses, require_plugin
 from curvefm.service.expiry import start_expiry
 from curvefm.service.login import LoginCookies
 from curvefm.service.models import JobInfoModel
+from curvefm.service.oidc import SingleSignOn
 from curvefm.service.quotas import quotas as make_quotas
 from curvefm.service.settings import Settings
 from curvefm.service.uploads import UploadSlots
@@ -54,6 +55,7 @@ class Services:
     database: Database
     shapes: Shapes
     uploads: UploadSlots
+    sso: SingleSignOn | None = None  # single sign-on, when configured
     stop_events: list[threading.Event] = field(default_factory=list)
 
     def close(self) -> None:
@@ -120,6 +122,7 @@ def start_services(settings: Settings) -> Services:
         database,
         Shapes(database),
         UploadSlots(settings),
+        SingleSignOn(settings) if settings.sso else None,
     )
     expiry = start_expiry(queue, store.root, settings.job_ttl_s, settings.expiry_interval_s)
     services.stop_events.append(expiry)

@@ -1,8 +1,9 @@
 """The server's logging: uvicorn's configuration, with secrets redacted from every record before it is written.
 
-uvicorn's access log prints each request line with its query string, and the login URL carries ``?token=``;
-an exception's message might quote a header. :class:`RedactSecrets` rewrites a record's message, arguments and
-traceback text: ``token=`` query values, bearer credentials and anything shaped like one of our tokens.
+uvicorn's access log prints each request line with its query string, and the login URL carries ``?token=`` (the
+single sign-on's return, ``?code=...&state=...``); an exception's message might quote a header.
+:class:`RedactSecrets` rewrites a record's message, arguments and traceback text: ``token=``, ``code=`` and
+``state=`` query values, bearer credentials and anything shaped like one of our tokens.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import re
 
 from curvefm.access import redact_tokens
 
-_QUERY_TOKEN = re.compile(r"([?&](?:access_)?token=)[^&\s\"']*", re.IGNORECASE)
+_QUERY_TOKEN = re.compile(r"([?&](?:(?:access_)?token|code|state)=)[^&\s\"']*", re.IGNORECASE)
 _BEARER = re.compile(r"(bearer\s+)[^\s\"',]+", re.IGNORECASE)
 REDACTED = "[redacted]"
 APP_FORMAT = "%(asctime)s %(levelname)s %(name)s: %(message)s"

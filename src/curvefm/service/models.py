@@ -245,6 +245,20 @@ class UserInfo(BaseModel):
     admin: bool
 
 
+class NewToken(BaseModel):
+    name: str
+    token: str = Field(description="send it as 'Authorization: Bearer TOKEN'; it is shown only this once")
+
+
+class SingleSignOnInfo(BaseModel):
+    label: str = Field(description="the provider's name for the login page ('Sign in with ...')")
+    login_url: str = Field(description="open it in the browser to sign in at the provider")
+
+
+class LoginMethods(BaseModel):
+    single_sign_on: SingleSignOnInfo | None = Field(description="null: not configured (CURVEFM_OIDC_ISSUER)")
+
+
 class RefineRequest(BaseModel):
     model_config = ConfigDict(extra="forbid")
     converter: str = "nearest-neighbor"

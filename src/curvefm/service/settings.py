@@ -15,7 +15,7 @@ from dataclasses import fields
 from pathlib import Path
 from typing import Annotated, Any
 
-from pydantic import AfterValidator, BeforeValidator, Field, ValidationError
+from pydantic import AfterValidator, BeforeValidator, Field, SecretStr, ValidationError, model_validator
 from pydantic_settings import NoDecode
 
 from curvefm.errors import InvalidInput
@@ -35,6 +35,8 @@ LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
 ANY_HOST = "*"
 DAY_S = 24 * 3600
 DEFAULT_LOGIN_TTL_S = 7 * 24 * 3600
+OIDC_SETTINGS = ("oidc_issuer", "oidc_client_id", "oidc_client_secret")
+"""Single sign-on is on when all three are set."""
 
 
 def normal_host(host: str) -> str:
@@ -56,6 +58,15 @@ NonNegative = Annotated[float, Field(ge=0)]  # also refuses nan
 Seconds = NonNegative  # inf: never
 Timeout = Annotated[float, Field(gt=0)]  # inf: never
 Hosts = Annotated[tuple[str, ...], NoDecode, BeforeValidator(lambda v: host_list(v) if isinstance(v, str) else v)]
+
+
+def http_url(text: str) -> str:
+    if not text.startswith(("https://", "http://")) or len(text) > 512:
+        raise ValueError("an http:// or https:// URL of at most 512 characters")
+    return text
+
+
+IssuerUrl = Annotated[str, AfterValidator(http_url)]
 
 
 def _session_limit(name: str) -> Any:
@@ -202,6 +213,51 @@ class Settings(QueueSettings):
         "edits at most this long.",
     )
 
+    oidc_issuer: IssuerUrl | None = Field(
+        None,
+        description="Single sign-on: the OpenID Connect provider's issuer URL, exactly as its ID tokens state it "
+        "(e.g. https://login.uni.example/realms/lab); its ISSUER/.well-known/openid-configuration is read at the "
+        "first sign-in. With oidc_client_id and oidc_client_secret, the login page offers to sign in there.",
+    )
+    oidc_client_id: str | None = Field(None, description="Single sign-on: curvefm's client id at the provider.")
+    oidc_client_secret: SecretStr | None = Field(
+        None, description="Single sign-on: curvefm's client secret at the provider (never logged or shown)."
+    )
+    oidc_scopes: str = Field(
+        "openid profile email",
+        description="Single sign-on: the scopes asked for, space-separated (openid is added when missing).",
+    )
+    oidc_name_claim: str = Field(
+        "preferred_username",
+        description="Single sign-on: the claim (of the ID token, else of the provider's userinfo) that names a user "
+        "made at their first sign-in; without it, the e-mail address, else the subject. A name already taken gets "
+        "a -2, -3... suffix.",
+    )
+    oidc_label: str = Field(
+        "single sign-on",
+        max_length=60,
+        description="Single sign-on: the provider's name on the login page's button ('Sign in with ...').",
+    )
+    oidc_timeout_s: Timeout = Field(
+        10.0, description="Single sign-on: seconds to wait for an answer of the provider before a 503."
+    )
+    oidc_login_timeout_s: Timeout = Field(
+        600.0, description="Single sign-on: seconds a person has to sign in at the provider and come back."
+    )
+
+    @model_validator(mode="after")
+    def _sso_complete(self) -> Settings:
+        given = [name for name in OIDC_SETTINGS if getattr(self, name) is not None]
+        if given and len(given) < len(OIDC_SETTINGS):
+            missing = ", ".join(env_name(name) for name in OIDC_SETTINGS if name not in given)
+            raise ValueError(f"single sign-on needs {missing} too")
+        return self
+
+    @property
+    def sso(self) -> bool:
+        """Whether single sign-on is configured."""
+        return self.oidc_issuer is not None
+
     @property
     def session_limits(self) -> SessionLimits:
         """The request limits that sessions and collections check."""
@@ -240,10 +296,12 @@ def _invalid(error: ValidationError, given: dict[str, Any]) -> str:
     by_variable = {env_name(name): name for name in Settings.model_fields}
     problems = []
     for problem in error.errors():
-        name = str(problem["loc"][0]) if problem["loc"] else ""
-        name = by_variable.get(name, name)
-        source = option_name(name) if name in given else env_name(name) if name in Settings.model_fields else name
         reason = problem["msg"].removeprefix("Value error, ")
+        if not problem["loc"]:  # about settings together (their values unshown: one may be a secret)
+            problems.append(reason)
+            continue
+        name = by_variable.get(str(problem["loc"][0]), str(problem["loc"][0]))
+        source = option_name(name) if name in given else env_name(name) if name in Settings.model_fields else name
         problems.append(f"{source}={problem['input']!r} is not valid: {reason[:1].lower()}{reason[1:]}")
     return "; ".join(problems) + "; see `curvefm serve --help`"
 

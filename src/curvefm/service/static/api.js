@@ -91,6 +91,10 @@ export const api = {
   login: (token) => request("POST", "/auth/login", { headers: { Authorization: `Bearer ${token}` } }),
   logout: () => request("POST", "/auth/logout", { as: "none" }),
   me: () => request("GET", "/auth/me"),
+  /** How one may log in besides a token: { single_sign_on: { label, login_url } | null }. */
+  loginMethods: () => request("GET", "/auth/methods"),
+  /** A new bearer token of the logged-in user (the old one stops working): { name, token }. */
+  newToken: () => request("POST", "/auth/token"),
   plugins: () => request("GET", "/plugins"),
 
   shapes: () => request("GET", "/shapes"),

@@ -27,7 +27,7 @@ import {
 } from "./controllers/display.js";
 import { clickMemberList, clickTemplateList, openNextMember, skip, step } from "./controllers/guide.js";
 import "./controllers/live.js"; // follows the open session's changes made elsewhere (the store's "followed")
-import { logOut, watchLogin } from "./controllers/login.js";
+import { logOut, makeToken, watchLogin } from "./controllers/login.js";
 import { openPair, upload } from "./controllers/pair.js";
 import { cancelRefine, downloadLiveExport, refine } from "./controllers/refine.js";
 import { toggleQuality } from "./controllers/quality.js";
@@ -43,6 +43,7 @@ import { chooseTarget, setTexture, state } from "./store.js";
 import { checkerboardTexture } from "./views/colors.js";
 import { $ } from "./views/dom.js";
 import { showParameters } from "./views/forms.js";
+import { hideNewToken } from "./views/login.js";
 import { showRadius } from "./views/page.js";
 import { SIDES, viewports } from "./views/viewports.js";
 
@@ -63,6 +64,8 @@ function bindControls() {
   for (const side of SIDES) viewports[side].onPick((vertex, event) => pickVertex(side, vertex, event));
   window.addEventListener("keydown", pressKey);
   on("logout-button", "click", logOut);
+  on("new-token-button", "click", makeToken);
+  on("token-done", "click", hideNewToken);
   // Shapes & session
   on("open-pair", "click", openPair);
   on("upload-input", "change", (event) => upload(event.target));
