@@ -219,7 +219,7 @@ RULES: dict[tuple[str, str], Rule] = {
     ("get", "/collections/{collection_id}/assignments"): Rule(lambda w: Call(collection(w)), other=404),
     ("get", "/me/work"): Rule(lambda w: Call()),
     ("get", "/collections/{collection_id}/exports/{export}"): Rule(
-        lambda w: Call(collection(w, export="landmarks.tps")), other=404
+        lambda w: Call(collection(w, export="landmarks.tps"), params={"complete_only": True}), other=404
     ),
     ("post", "/collections/{collection_id}/webhooks"): Rule(
         lambda w: Call(collection(w), json={"url": WEBHOOK_URL, "events": ["run.ended"]}), other=404

@@ -75,6 +75,9 @@ def test_an_event_reaches_the_webhooks_subscribed_to_it(repo):
     hooks, collection = repo["hooks"], repo["record"].id
     runs, _ = hooks.create(collection, "https://lab.example/runs", [WebhookEvent.RUN_ENDED], None, limit=5)
     members, _ = hooks.create(collection, "https://lab.example/m", [WebhookEvent.MEMBER_ADDED], None, limit=5)
+    assert hooks.subscribed(collection, WebhookEvent.RUN_ENDED)
+    assert not hooks.subscribed(collection, WebhookEvent.MEMBER_REMOVED)
+    assert hooks.notify(collection, WebhookEvent.MEMBER_REMOVED, {"member": "m3"}) == []
     (delivery,) = hooks.notify(collection, WebhookEvent.MEMBER_ADDED, {"member": "m3"})
     (body,) = _bodies(repo)
     assert body == {**body, "id": delivery, "event": "member.added", "collection": collection, "data": {"member": "m3"}}

@@ -122,6 +122,13 @@ class Webhooks:
             items = [_delivery(row) for row in conn.execute(query)]
         return Page(items, total, limit, offset)
 
+    def subscribed(self, collection_id: str, event: WebhookEvent) -> bool:
+        """Whether a webhook of the collection wants ``event`` (to skip the work of finding out whether it
+        happened)."""
+        with self.db.read() as conn:
+            rows = conn.execute(select(m.Webhook.events).where(m.Webhook.collection_id == collection_id))
+            return any(str(event) in events for (events,) in rows)
+
     def notify(
         self,
         collection_id: str,
@@ -149,12 +156,12 @@ class Webhooks:
             & (m.WebhookDelivery.next_attempt_at <= now)
             & ((m.WebhookDelivery.lease_until.is_(None)) | (m.WebhookDelivery.lease_until <= now))
         )
+        candidates = select(m.WebhookDelivery.id).where(due).order_by(m.WebhookDelivery.next_attempt_at).limit(limit)
+        with self.db.read() as conn:  # most looks find nothing: they take no write lock
+            ids = list(conn.execute(candidates).scalars())
+        if not ids:
+            return []
         with self.db.write() as conn:
-            ids = list(
-                conn.execute(
-                    select(m.WebhookDelivery.id).where(due).order_by(m.WebhookDelivery.next_attempt_at).limit(limit)
-                ).scalars()
-            )
             claimed = [
                 delivery_id
                 for delivery_id in ids

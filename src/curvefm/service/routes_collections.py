@@ -273,11 +273,12 @@ def answer_template_curve(
     session's revision the answer is based on, as for a session's edits."""
     check_collection(services, user, collection_id, "answer", member_id)
     options = body.model_dump(exclude={"template_curve", "target"})
-    was_done = _member_done(services, collection_id, member_id)
+    watched = services.webhooks.subscribed(collection_id, WebhookEvent.MEMBER_COMPLETED)
+    was_done = watched and _member_done(services, collection_id, member_id)
     curve, summary = services.collections.answer(
         collection_id, member_id, body.template_curve, body.target, expected_revision(if_match), **options
     )
-    if not was_done and _member_done(services, collection_id, member_id):
+    if watched and not was_done and _member_done(services, collection_id, member_id):
         data = {"member": member_id, "session": curve_session(services, collection_id, member_id)}
         services.webhooks.notify(collection_id, WebhookEvent.MEMBER_COMPLETED, {**data, "revision": summary.revision})
     return CurveEdit(curve=curve, map=summary)

@@ -100,7 +100,7 @@ def _view(row: WebhookRow) -> WebhookView:
         id=row.id,
         collection=row.collection_id,
         url=row.url,
-        events=[WebhookEvent(name) for name in row.events],  # type: ignore[misc]
+        events=row.events,  # type: ignore[arg-type]  # the records hold WebhookEvent values
         created_by=row.created_by,
         created_at=row.created_at,
         last_delivery=last,
