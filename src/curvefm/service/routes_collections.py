@@ -274,25 +274,23 @@ def answer_template_curve(
     check_collection(services, user, collection_id, "answer", member_id)
     options = body.model_dump(exclude={"template_curve", "target"})
     watched = services.webhooks.subscribed(collection_id, WebhookEvent.MEMBER_COMPLETED)
-    was_done = watched and _member_done(services, collection_id, member_id)
+    was_done = watched and _member_done(services, collection_id, member_id)[0]
     curve, summary = services.collections.answer(
         collection_id, member_id, body.template_curve, body.target, expected_revision(if_match), **options
     )
-    if watched and not was_done and _member_done(services, collection_id, member_id):
-        data = {"member": member_id, "session": curve_session(services, collection_id, member_id)}
-        services.webhooks.notify(collection_id, WebhookEvent.MEMBER_COMPLETED, {**data, "revision": summary.revision})
+    if watched and not was_done:
+        done, session_id = _member_done(services, collection_id, member_id)
+        if done:
+            data = {"member": member_id, "session": session_id, "revision": summary.revision}
+            services.webhooks.notify(collection_id, WebhookEvent.MEMBER_COMPLETED, data)
     return CurveEdit(curve=curve, map=summary)
 
 
-def curve_session(services: Services, collection_id: str, member_id: str) -> str:
-    return services.collections.record(collection_id).member(member_id).session
-
-
-def _member_done(services: Services, collection_id: str, member_id: str) -> bool:
-    """Whether every template curve of the collection is answered on the member."""
+def _member_done(services: Services, collection_id: str, member_id: str) -> tuple[bool, str]:
+    """Whether every template curve of the collection is answered on the member, and the member's session."""
     record = services.collections.record(collection_id)
     session = services.sessions.record(record.member(member_id).session)
-    return _progress(record, member_id, session, None, "").done
+    return _progress(record, member_id, session, None, "").done, session.id
 
 
 @router.get("/collections/{collection_id}/roles", response_model=list[RoleGrant], responses=ERRORS)
