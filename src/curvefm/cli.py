@@ -664,6 +664,12 @@ def parser() -> argparse.ArgumentParser:
             type=int,
             help=f"{limit.metadata['help']} (default $CURVEFM_{limit.name.upper()} or {limit.default})",
         )
+    s.add_argument("--max-webhooks", type=int, help="webhooks per collection (default $CURVEFM_MAX_WEBHOOKS or 10)")
+    s.add_argument(
+        "--max-pseudo-landmarks",
+        type=int,
+        help="pseudo-landmarks a collection export may ask for (default $CURVEFM_MAX_PSEUDO_LANDMARKS or 10000)",
+    )
     add_limit_options(s)
     s.add_argument("--log-level", default="info")
     s.set_defaults(run=cmd_serve)

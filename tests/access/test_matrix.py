@@ -27,6 +27,7 @@ from curvefm.service.settings import Settings
 from curvefm.service.ui import VENDOR_URLS
 
 CALLERS = ("anonymous", "wrong", "other", "owner", "admin")
+WEBHOOK_URL = "https://hooks.example/curvefm"
 OK = "2xx"
 
 
@@ -99,6 +100,13 @@ class World:
         """A mesh file no collection has as a member yet (a collection refuses a shape twice)."""
         self.uploads += 1
         return "e.off", off_bytes(ellipsoid(6, 12, scale=2 + self.uploads / 100))
+
+    def fresh_webhook(self) -> str:
+        """A new webhook of the owner's collection."""
+        body = {"url": WEBHOOK_URL, "events": ["run.ended"]}
+        return (
+            self.lab.owner.post(f"/collections/{self.collection}/webhooks", json=body).raise_for_status().json()["id"]
+        )
 
     def fresh_member(self) -> str:
         """A new member of the owner's collection (on a new shape)."""
@@ -220,6 +228,19 @@ RULES: dict[tuple[str, str], Rule] = {
     ),
     ("get", "/collections/{collection_id}/assignments"): Rule(lambda w: Call(collection(w)), other=404),
     ("get", "/me/work"): Rule(lambda w: Call()),
+    ("get", "/collections/{collection_id}/exports/{export}"): Rule(
+        lambda w: Call(collection(w, export="landmarks.tps"), params={"complete_only": True}), other=404
+    ),
+    ("post", "/collections/{collection_id}/webhooks"): Rule(
+        lambda w: Call(collection(w), json={"url": WEBHOOK_URL, "events": ["run.ended"]}), other=404
+    ),
+    ("get", "/collections/{collection_id}/webhooks"): Rule(lambda w: Call(collection(w)), other=404),
+    ("delete", "/collections/{collection_id}/webhooks/{webhook_id}"): Rule(
+        lambda w: Call(collection(w, webhook_id=w.fresh_webhook())), other=404
+    ),
+    ("get", "/collections/{collection_id}/webhooks/{webhook_id}/deliveries"): Rule(
+        lambda w: Call(collection(w, webhook_id=w.fresh_webhook())), other=404
+    ),
     ("post", "/collections/{collection_id}/runs"): Rule(
         lambda w: Call(collection(w), json={"converter": "nearest-neighbor", "members": ["m1"]}), other=404
     ),

@@ -41,6 +41,9 @@ SCHEMA_VALID_BUT_REFUSED = {
     "POST /collections/{collection_id}/members/upload": "a multipart body with no file, or a file that is no mesh",
     "POST /sessions/{session_id}/markups": "whether a file is Slicer markups on the session's shapes",
     "GET /sessions/{session_id}/exports/{export}": "'refinement' with a map export, or landmarks of no curves",
+    "POST /collections/{collection_id}/webhooks": "a URL that is not http(s) with a host, or names an internal address",
+    "GET /collections/{collection_id}/exports/{export}": "landmarks of members that lack template curves, or "
+    "pseudo-landmarks without a run",
 }
 """Operations that may answer 400 to a request the schema accepts, and why (their 400 says so too)."""
 

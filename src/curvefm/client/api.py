@@ -531,6 +531,40 @@ class Collection:
         Path(out).write_bytes(self.client.download(f"{self.path}/runs/{run_id}/archive.{kind}"))
         return Path(out)
 
+    def landmarks(
+        self,
+        file: str,
+        out: str | Path,
+        semilandmarks: int = 20,
+        pseudo: int = 0,
+        run: str | None = None,
+        complete_only: bool = False,
+        template: bool = False,
+    ) -> Path:
+        """Download one of the collection's landmark exports (``landmarks.tps``, ``morphologika.txt``,
+        ``curveslide.csv``, ``pseudo_landmarks.csv``), one specimen per member (``template``: the template first):
+        the template curves' endpoints, ``semilandmarks`` per curve and ``pseudo`` pseudo-landmarks, by the
+        members' live maps or a finished ``run``'s; ``complete_only`` leaves out the members that do not answer
+        every template curve."""
+        params: dict[str, Any] = {"semilandmarks": semilandmarks, "pseudo": pseudo}
+        params |= {"complete_only": complete_only, "template": template}
+        if run is not None:
+            params["run"] = run
+        Path(out).write_bytes(self.client.request("GET", f"{self.path}/exports/{file}", params=params).content)
+        return Path(out)
+
+    def add_webhook(self, url: str, events: list[str]) -> dict[str, Any]:
+        """Register ``url`` to receive a signed POST on each of ``events`` (``run.ended``, ``member.added``, ...);
+        the answer's ``secret`` (shown this once) checks the signatures (:func:`curvefm.webhooks.verify`)."""
+        return self.client.json("POST", f"{self.path}/webhooks", json={"url": url, "events": list(events)})
+
+    def webhooks(self) -> list[dict[str, Any]]:
+        """The collection's webhooks, each with its newest delivery."""
+        return self.client.json("GET", f"{self.path}/webhooks")
+
+    def remove_webhook(self, webhook_id: str) -> None:
+        self.client.request("DELETE", f"{self.path}/webhooks/{webhook_id}")
+
     def composed(self, run_id: str, a: str, b: str) -> tuple[np.ndarray, np.ndarray]:
         """``(map_a_to_b, C_a_to_b)``: member a to member b through the template."""
         data = self.client.download(f"{self.path}/runs/{run_id}/members/{a}/to/{b}?format=npz")

@@ -6,7 +6,8 @@ to the nearest vertices, as curve pairs to seed a session.
 * ``configuration``: :class:`Configuration`, corresponding landmarks on source and target, built from a session;
 * ``writing``: the file writers;
 * ``reading``: Slicer markups read (:class:`Markup`) and paired between two files (:func:`pair_markups`);
-* ``seeding``: markups snapped to the meshes (with each point's distance) and made :class:`CurveSpec` s.
+* ``seeding``: markups snapped to the meshes (with each point's distance) and made :class:`CurveSpec` s;
+* ``project``: a collection's configuration, a specimen per member (:func:`project_configuration`).
 """
 
 from curvefm.morphometrics.configuration import (
@@ -21,6 +22,14 @@ from curvefm.morphometrics.configuration import (
     resample_path,
     session_configuration,
 )
+from curvefm.morphometrics.project import (
+    MemberShape,
+    live_mapped,
+    missing_curves,
+    project_configuration,
+    run_mapped,
+    template_pseudo,
+)
 from curvefm.morphometrics.reading import Markup, MarkupPairs, pair_markups, read_markups
 from curvefm.morphometrics.seeding import (
     DEFAULT_SNAP_TOLERANCE,
@@ -32,17 +41,20 @@ from curvefm.morphometrics.seeding import (
     seed_curves,
 )
 from curvefm.morphometrics.writing import (
+    COLLECTION_EXPORTS,
     EXPORTS,
     MARKUPS_SCHEMA,
     curveslide_csv,
     fcsv,
     markups_json,
     morphologika,
+    pseudo_landmarks_csv,
     tps,
     write_export,
 )
 
 __all__ = [
+    "COLLECTION_EXPORTS",
     "DEFAULT_SEMILANDMARKS",
     "DEFAULT_SNAP_TOLERANCE",
     "EXPORTS",
@@ -53,6 +65,7 @@ __all__ = [
     "CurveLandmarks",
     "Markup",
     "MarkupPairs",
+    "MemberShape",
     "SeededCurve",
     "Seeding",
     "SnappedPoint",
@@ -61,15 +74,21 @@ __all__ = [
     "curveslide_csv",
     "fcsv",
     "live_configuration",
+    "live_mapped",
     "markups_json",
+    "missing_curves",
     "morphologika",
     "pair_markups",
+    "project_configuration",
     "pseudo_landmarks",
+    "pseudo_landmarks_csv",
     "read_markups",
     "refined_configuration",
     "resample_path",
+    "run_mapped",
     "seed_curves",
     "session_configuration",
+    "template_pseudo",
     "tps",
     "write_export",
 ]

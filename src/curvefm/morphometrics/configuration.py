@@ -9,7 +9,7 @@ endpoints (start, end; curve by curve), then every curve's semilandmarks, then t
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -45,15 +45,20 @@ class CurveLandmarks:
 
 @dataclass(frozen=True)
 class Configuration:
-    """The same landmarks on both shapes: ``points[0]`` on the source, ``points[1]`` on the target, ``(L, 3)``
-    in each mesh's own coordinates; ``labels`` name them, ``curves`` and ``pseudo`` say which are which."""
+    """The same landmarks on several shapes (specimens): a session's are ``points[0]`` on the source and
+    ``points[1]`` on the target, a collection's one per member; ``(L, 3)`` in each mesh's own coordinates.
+    ``labels`` name them, ``curves`` and ``pseudo`` say which are which; ``pseudo_vertices``, when known, the
+    vertex (file id) of each pseudo-landmark on each specimen, and ``pseudo_origin`` the vertex of the template
+    (a session's source) it was chosen at."""
 
-    names: tuple[str, str]
-    points: tuple[np.ndarray, np.ndarray]
+    names: tuple[str, ...]
+    points: tuple[np.ndarray, ...]
     labels: list[str]
     curves: list[CurveLandmarks]
     pseudo: range
     revision: int
+    pseudo_vertices: tuple[np.ndarray, ...] = ()
+    pseudo_origin: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
 
     @property
     def size(self) -> int:

@@ -89,7 +89,8 @@ def fcsv(config: Configuration, side: int) -> str:
 
 
 def tps(config: Configuration) -> str:
-    """Both shapes as TPS: ``LM3=`` with the number of landmarks, one ``x y z`` line each, then ``ID=``."""
+    """Every shape (both of a session) as TPS: ``LM3=`` with the number of landmarks, one ``x y z`` line each,
+    then ``ID=``."""
     lines = []
     for name, points in zip(config.names, config.points, strict=True):
         lines.append(f"LM3={config.size}")
@@ -99,9 +100,9 @@ def tps(config: Configuration) -> str:
 
 
 def morphologika(config: Configuration) -> str:
-    """Both shapes as a morphologika file."""
+    """Every shape (both of a session) as a morphologika file."""
     names = [_one_line(name).replace(" ", "_") for name in config.names]
-    lines = ["[individuals]", "2", "[landmarks]", str(config.size), "[dimensions]", "3", "[names]", *names]
+    lines = ["[individuals]", str(len(names)), "[landmarks]", str(config.size), "[dimensions]", "3", "[names]", *names]
     lines.append("[rawpoints]")
     for name, points in zip(names, config.points, strict=True):
         lines.append(f"'{name}")
@@ -115,6 +116,19 @@ def curveslide_csv(config: Configuration) -> str:
     for curve in config.curves:
         along = curve.control_points
         rows += [f"{a + 1},{s + 1},{b + 1}" for a, s, b in zip(along, along[1:], along[2:], strict=False)]
+    return "\n".join(rows) + "\n"
+
+
+def pseudo_landmarks_csv(config: Configuration) -> str:
+    """Every pseudo-landmark on every shape: ``specimen,label,template_vertex,vertex,x,y,z`` (vertices as file
+    ids; ``template_vertex`` the template's vertex it was chosen at, ``vertex`` the one the maps give)."""
+    rows = ["specimen,label,template_vertex,vertex,x,y,z"]
+    chosen = config.pseudo_origin
+    for name, points, vertices in zip(config.names, config.points, config.pseudo_vertices, strict=True):
+        specimen = _one_line(name).replace(",", "_")
+        for i, (at, vertex) in enumerate(zip(config.pseudo, vertices, strict=True)):
+            xyz = ",".join(number(v) for v in points[at])
+            rows.append(f"{specimen},{config.labels[at]},{chosen[i]},{vertex},{xyz}")
     return "\n".join(rows) + "\n"
 
 
@@ -136,6 +150,13 @@ EXPORTS: dict[str, tuple[str, Callable[[Configuration], str]]] = {
     "curveslide.csv": ("text/csv", curveslide_csv),
 }
 """Each export's file name, media type and writer."""
+COLLECTION_EXPORTS: dict[str, tuple[str, Callable[[Configuration], str]]] = {
+    "landmarks.tps": ("text/plain", tps),
+    "morphologika.txt": ("text/plain", morphologika),
+    "curveslide.csv": ("text/csv", curveslide_csv),
+    "pseudo_landmarks.csv": ("text/csv", pseudo_landmarks_csv),
+}
+"""A collection's exports (one specimen per member): file name, media type and writer."""
 
 
 def write_export(name: str, config: Configuration, folder: Path) -> Path:

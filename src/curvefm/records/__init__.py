@@ -41,6 +41,12 @@ The record model (:mod:`.models`; ``->`` a foreign key, with what happens when t
     member_assignments (collection_id -> collections CASCADE, member_id) PK, user_id -> users CASCADE,
                       assigned_at: members assigned to annotators (a removed member's row is inert: ids are not
                       reused, reads join collection_members)
+    webhooks          id PK, collection_id -> collections CASCADE, url, secret (signs the deliveries, so kept as
+                      given out), events (JSON list), created_by -> users (SET NULL), created_at
+    webhook_deliveries id PK, webhook_id -> webhooks CASCADE, event, event_key (an occurrence delivered once: a
+                      run's end), body (the JSON posted), state (pending, delivered, failed), attempts, created_at,
+                      next_attempt_at, lease_until (claimed by an API process), last_attempt_at, last_status,
+                      last_error: the outbox of the webhooks and their delivery log (:mod:`.webhooks`)
     audit             id PK (append order), time, actor (a name or "cli"), user_id -> users, action, target,
                       detail (JSON)
     legacy_imports    id PK, source, imported_at, counts (JSON): each import of the old JSON-file layout
@@ -57,7 +63,7 @@ user's sessions, member sessions included), concurrent jobs = COUNT(the user's q
 in the transaction that admits the new thing.
 
 Modules, one per concept: :mod:`.users`, :mod:`.shapes` (uploaders, and the shape-in-use check),
-:mod:`.sessions`, :mod:`.collections`, :mod:`.jobs`, :mod:`.usage` (quotas), :mod:`.audit`; lists are
+:mod:`.sessions`, :mod:`.collections`, :mod:`.jobs`, :mod:`.usage` (quotas), :mod:`.audit`, :mod:`.webhooks`; lists are
 :class:`~.common.Page` s filtered in SQL for a :class:`~.common.Viewer`. :mod:`.migrate` runs Alembic from code
 (``curvefm db upgrade``), :mod:`.legacy_import` imports a data directory in the old layout (``curvefm db
 import``, and at first start), :mod:`.backup` copies a SQLite database (``curvefm db backup`` / ``restore``),

@@ -25,6 +25,7 @@ from curvefm.records import models as m
 from curvefm.records.common import DEFAULT_PAGE, Page, Viewer, check_page, well_formed
 from curvefm.records.engine import Database
 from curvefm.records.users import owner_id, owner_name
+from curvefm.records.webhooks import announce_run_end
 
 PROGRESS_WRITE_INTERVAL_S = 2.0
 ENDED = m.ENDED_STATES
@@ -114,10 +115,12 @@ class Jobs:
     ) -> JobRow | None:
         with self.db.joined(conn) as tx:
             query = update(m.Job).where(m.Job.id == job_id)
-            if only_unended:
-                query = query.where(m.Job.state.not_in(ENDED))
-            if values:
-                tx.execute(query.values(**values))
+            unended = query.where(m.Job.state.not_in(ENDED))
+            ends = values.get("state") in ENDED and tx.execute(unended.values(**values)).rowcount == 1
+            if ends:  # this change ended the job (of two processes ending it at once, one did)
+                announce_run_end(tx, job_id)
+            elif values:
+                tx.execute((unended if only_unended else query).values(**values))
             job = _load(tx, job_id)
         if job is not None and job.ended:
             self._progress_written.pop(job_id, None)

@@ -321,3 +321,41 @@ class SessionViewer(Base):
     user_id: Mapped[int] = mapped_column(ForeignKey("users.id", ondelete="CASCADE"), index=True)
     opened_at: Mapped[float] = mapped_column(Double)
     expires_at: Mapped[float] = mapped_column(Double, index=True)
+
+
+class Webhook(Base):
+    """A URL that receives a signed JSON POST when one of ``events`` (a list of event names) happens in the
+    collection. ``secret`` signs the bodies (HMAC-SHA256), so it is kept as given out, not hashed."""
+
+    __tablename__ = "webhooks"
+    id: Mapped[str] = mapped_column(ID, primary_key=True)
+    collection_id: Mapped[str] = mapped_column(ForeignKey("collections.id", ondelete="CASCADE"), index=True)
+    url: Mapped[str] = mapped_column(Text)
+    secret: Mapped[str] = mapped_column(String(128))
+    events: Mapped[list[str]] = mapped_column(Json)
+    created_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
+    created_at: Mapped[float] = mapped_column(Double)
+
+
+class WebhookDelivery(Base):
+    """One event for one webhook (an outbox row, written in the transaction of the change it announces):
+    ``pending`` until an API process posts it (``lease_until``: claimed by one until then), then ``delivered``
+    or, after its last attempt, ``failed``; ``last_*`` say how its last attempt went."""
+
+    __tablename__ = "webhook_deliveries"
+    id: Mapped[str] = mapped_column(ID, primary_key=True)
+    webhook_id: Mapped[str] = mapped_column(ForeignKey("webhooks.id", ondelete="CASCADE"), index=True)
+    event: Mapped[str] = mapped_column(String(32))
+    event_key: Mapped[str | None] = mapped_column(String(200), index=True)
+    """Names an occurrence that two processes may both see (a run's end): it is delivered once."""
+    body: Mapped[str] = mapped_column(Text)
+    """The JSON posted, as signed."""
+    state: Mapped[str] = mapped_column(String(16))
+    attempts: Mapped[int] = mapped_column(Integer)
+    created_at: Mapped[float] = mapped_column(Double)
+    next_attempt_at: Mapped[float] = mapped_column(Double)
+    lease_until: Mapped[float | None] = mapped_column(Double)
+    last_attempt_at: Mapped[float | None] = mapped_column(Double)
+    last_status: Mapped[int | None] = mapped_column(Integer)
+    last_error: Mapped[str | None] = mapped_column(Text)
+    __table_args__ = (Index("ix_webhook_deliveries_due", "state", "next_attempt_at"),)

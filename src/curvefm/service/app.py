@@ -22,6 +22,7 @@ from curvefm.service import (
     routes_jobs,
     routes_sessions,
     routes_shapes,
+    routes_webhooks,
 )
 from curvefm.service.auth import LOCAL_ADMIN, CredentialsFirst
 from curvefm.service.connections import timed_h11, timed_receive
@@ -145,7 +146,16 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.add_middleware(RateLimit, settings=settings, buckets=buckets, exempt=is_unlimited)
     app.add_middleware(HostCheck, allowed=settings.allowed_hosts)
     app.add_middleware(SecurityHeaders, csp=ui_csp(INDEX_HTML), docs_csp=docs_csp(DOCS_PAGES.values()))
-    routes = (routes_auth, routes_shapes, routes_sessions, routes_events, routes_collections, routes_jobs, routes_audit)
+    routes = (
+        routes_auth,
+        routes_shapes,
+        routes_sessions,
+        routes_events,
+        routes_collections,
+        routes_webhooks,
+        routes_jobs,
+        routes_audit,
+    )
     for module in routes:
         app.include_router(module.router)
     app.include_router(routes_jobs.public)

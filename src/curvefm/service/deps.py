@@ -21,16 +21,18 @@ from curvefm.records.sessions import Sessions
 from curvefm.records.sessions import blob_bytes as stored_mesh_bytes
 from curvefm.records.shapes import Shapes
 from curvefm.records.usage import Quotas
+from curvefm.records.webhooks import Webhooks
 from curvefm.service.errors import error_responses, require_plugin
 from curvefm.service.expiry import start_expiry
 from curvefm.service.login import LoginCookies
 from curvefm.service.models import JobInfoModel
 from curvefm.service.oidc import SingleSignOn
 from curvefm.service.quotas import quotas as make_quotas
-from curvefm.service.settings import Settings
+from curvefm.service.settings import Settings, env_name
 from curvefm.service.uploads import UploadSlots
 from curvefm.session import LiveSessions, SessionEditor, SessionRecord
 from curvefm.store import Store, params_key
+from curvefm.webhooks.delivery import DeliveryPolicy, start_delivery
 from curvefm.workers.factory import make_queue
 from curvefm.workers.interface import Admission, JobInfo, JobQueue
 
@@ -55,6 +57,9 @@ class Services:
     database: Database
     shapes: Shapes
     uploads: UploadSlots
+    webhooks: Webhooks
+    """The collections' webhooks: ``services.webhooks.notify(collection_id, WebhookEvent.X, data)`` announces an
+    event (posted by this process's delivery loop, or another API process's)."""
     sso: SingleSignOn | None = None  # single sign-on, when configured
     stop_events: list[threading.Event] = field(default_factory=list)
 
@@ -122,11 +127,23 @@ def start_services(settings: Settings) -> Services:
         database,
         Shapes(database),
         UploadSlots(settings),
+        Webhooks(database, settings.webhook_log_size),
         SingleSignOn(settings) if settings.sso else None,
     )
     expiry = start_expiry(queue, store.root, settings.job_ttl_s, settings.expiry_interval_s)
     services.stop_events.append(expiry)
+    services.stop_events.append(start_delivery(services.webhooks, delivery_policy(settings), settings.webhook_poll_s))
     return services
+
+
+def delivery_policy(settings: Settings) -> DeliveryPolicy:
+    return DeliveryPolicy(
+        settings.webhook_timeout_s,
+        settings.webhook_retries,
+        settings.webhook_retry_delay_s,
+        settings.webhook_allow_private,
+        env_name("webhook_allow_private"),
+    )
 
 
 def viewer(user: User | None) -> Viewer:

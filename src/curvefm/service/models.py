@@ -342,3 +342,58 @@ class ComposedMaps(BaseModel):
         description="C_Tb C_aT: coefficients on a -> coefficients on b, k_b x k_a; maps handed out at different "
         "sizes compose over the template frequencies both hold (docs: decisions, composing maps of different sizes)"
     )
+
+
+WebhookEventName = Literal[
+    "run.ended", "member.added", "member.removed", "member.completed", "member.submitted", "member.accepted"
+]
+"""The values of :class:`curvefm.webhooks.WebhookEvent` (tests/service/test_webhooks.py checks they agree)."""
+
+
+class WebhookCreate(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    url: str = Field(
+        min_length=1,
+        max_length=2000,
+        description="where to POST: http:// or https://; an internal address (loopback, private, link-local) only "
+        "where the operator allows it (CURVEFM_WEBHOOK_ALLOW_PRIVATE)",
+        examples=["https://lab.example/curvefm-hook"],
+    )
+    events: list[WebhookEventName] = Field(
+        min_length=1,
+        max_length=16,
+        description="what to be told: run.ended (a batch run's jobs all ended), member.added, member.removed, "
+        "member.completed (a member's template curves all answered), member.submitted and member.accepted (the "
+        "review stage)",
+    )
+
+
+class WebhookDelivery(BaseModel):
+    id: str = Field(description="the delivery's id, also in its body and X-Curvefm-Delivery (the same on retries)")
+    event: WebhookEventName
+    state: Literal["pending", "delivered", "failed"] = Field(
+        description="pending: not posted yet, or to be tried again at next_attempt_at; failed: its last try failed"
+    )
+    attempts: int
+    created_at: float = Field(description="UNIX seconds")
+    next_attempt_at: float
+    last_attempt_at: float | None
+    last_status: int | None = Field(description="the HTTP status the receiver answered last (None: no answer)")
+    last_error: str | None = Field(description="why the last attempt failed")
+
+
+class WebhookView(BaseModel):
+    id: str
+    collection: str
+    url: str
+    events: list[WebhookEventName]
+    created_by: str | None = Field(description="who registered it (None: a removed user)")
+    created_at: float
+    last_delivery: WebhookDelivery | None = Field(description="its newest delivery, with how its last attempt went")
+
+
+class WebhookCreated(WebhookView):
+    secret: str = Field(
+        description="signs every delivery (X-Curvefm-Signature: t=<unix time>,v1=<hex HMAC-SHA256 of "
+        "'<t>.<body>'>); shown this once: keep it"
+    )

@@ -27,7 +27,19 @@ from curvefm.collection import (
     write_npz,
     write_zip,
 )
-from curvefm.errors import Conflict, Forbidden, InvalidInput, NotFound, shown
+from curvefm.errors import Conflict, Forbidden, InvalidInput, LimitExceeded, NotFound, shown
+from curvefm.morphometrics import (
+    COLLECTION_EXPORTS,
+    DEFAULT_SEMILANDMARKS,
+    MAX_SEMILANDMARKS,
+    Configuration,
+    MemberShape,
+    live_mapped,
+    missing_curves,
+    project_configuration,
+    run_mapped,
+    template_pseudo,
+)
 from curvefm.records.common import MAX_PAGE
 from curvefm.service.auth import AUTHENTICATED, CurrentUser
 from curvefm.service.deps import (
@@ -41,6 +53,7 @@ from curvefm.service.deps import (
     viewer,
 )
 from curvefm.service.errors import error_responses
+from curvefm.service.filenames import attachment
 from curvefm.service.models import (
     AnnotatorProgress,
     AnswerRequest,
@@ -66,6 +79,7 @@ from curvefm.service.permissions import REFUSALS, capabilities, check_collection
 from curvefm.service.routes_sessions import IfMatch, converter_params, expected_revision
 from curvefm.service.routes_shapes import store_upload
 from curvefm.session import BasisNeed, SessionRecord, basis_available
+from curvefm.webhooks import WebhookEvent
 
 router = APIRouter(
     tags=["collections"],
@@ -188,10 +202,12 @@ def remove_member(
     """Remove a member: its session, its curves and the result files of its refinement jobs go with it (running
     ones are canceled first), and it leaves the collection's runs. Whoever may add members (an owner, a manager,
     an admin, or every user when the collection is shared editable)."""
-    collection_for(services, user, collection_id, "edit")
+    record = collection_for(services, user, collection_id, "edit")
+    shape = record.member(member_id).shape
     for job_id in services.collections.remove_member(collection_id, member_id):
         discard_job(services, job_id)
     services.audit.record(user.name, "collection.remove_member", collection_id, {"member": member_id})
+    services.webhooks.notify(collection_id, WebhookEvent.MEMBER_REMOVED, {"member": member_id, "shape": shape})
     return Response(status_code=204)
 
 
@@ -225,9 +241,14 @@ def upload_members(
 
 def _with_members(services: Services, user: User, collection_id: str, shapes: list[str]) -> CollectionView:
     """Add the stored shapes as members, queue their basis jobs, and return the collection's view."""
+    before = {m.id for m in services.collections.record(collection_id).members}
     with services.quotas.admit(user, "sessions", count=len(shapes)) as conn:  # members are sessions of yours
         services.collections.add_members(collection_id, shapes, conn=conn)
-    _queue_bases(services, services.collections.record(collection_id), user)
+    record = services.collections.record(collection_id)
+    _queue_bases(services, record, user)
+    for member in (m for m in record.members if m.id not in before):
+        data = {"member": member.id, "shape": member.shape, "session": member.session}
+        services.webhooks.notify(collection_id, WebhookEvent.MEMBER_ADDED, data)
     return _view(services, collection_id, user)
 
 
@@ -252,10 +273,24 @@ def answer_template_curve(
     session's revision the answer is based on, as for a session's edits."""
     check_collection(services, user, collection_id, "answer", member_id)
     options = body.model_dump(exclude={"template_curve", "target"})
+    watched = services.webhooks.subscribed(collection_id, WebhookEvent.MEMBER_COMPLETED)
+    was_done = watched and _member_done(services, collection_id, member_id)[0]
     curve, summary = services.collections.answer(
         collection_id, member_id, body.template_curve, body.target, expected_revision(if_match), **options
     )
+    if watched and not was_done:
+        done, session_id = _member_done(services, collection_id, member_id)
+        if done:
+            data = {"member": member_id, "session": session_id, "revision": summary.revision}
+            services.webhooks.notify(collection_id, WebhookEvent.MEMBER_COMPLETED, data)
     return CurveEdit(curve=curve, map=summary)
+
+
+def _member_done(services: Services, collection_id: str, member_id: str) -> tuple[bool, str]:
+    """Whether every template curve of the collection is answered on the member, and the member's session."""
+    record = services.collections.record(collection_id)
+    session = services.sessions.record(record.member(member_id).session)
+    return _progress(record, member_id, session, None, "").done, session.id
 
 
 @router.get("/collections/{collection_id}/roles", response_model=list[RoleGrant], responses=ERRORS)
@@ -456,6 +491,7 @@ def start_run(collection_id: str, body: RunRequest, services: ServicesDep, user:
         return submit_refine(services, session, body.converter, params, user.name, next(admissions)).id
 
     run = services.collections.start_run(collection_id, body.converter, params, submit, body.members, body.only_ready)
+    services.webhooks.run_recorded(collection_id, run.id)
     services.audit.record(user.name, "collection.run", collection_id, {"run": run.id, "jobs": len(run.members)})
     return run_status(run, lambda job_id: job_view(services, job_id))
 
@@ -529,6 +565,120 @@ def get_composed(
         np.savez_compressed(out, map_a_to_b=p2p, C_a_to_b=C)
         return Response(out.getvalue(), media_type="application/x-npz")
     return ComposedMaps(a=a, b=b, run=run_id, map_a_to_b=p2p.tolist(), C_a_to_b=C.tolist())
+
+
+CollectionExport = Literal["landmarks.tps", "morphologika.txt", "curveslide.csv", "pseudo_landmarks.csv"]
+
+
+@router.get(
+    "/collections/{collection_id}/exports/{export}",
+    response_class=Response,
+    responses={
+        200: {"content": {media: {"schema": {"type": "string"}} for media, _ in COLLECTION_EXPORTS.values()}},
+        **error_responses(400, 404, 409, 413, 422, described={400: "pseudo_landmarks.csv without pseudo-landmarks"}),
+    },
+)
+def get_collection_export(
+    collection_id: str,
+    export: CollectionExport,
+    services: ServicesDep,
+    user: CurrentUser,
+    semilandmarks: Annotated[
+        int, Query(ge=0, le=MAX_SEMILANDMARKS, description="semilandmarks per template curve, between its ends")
+    ] = DEFAULT_SEMILANDMARKS,
+    pseudo: Annotated[
+        int,
+        Query(
+            ge=0,
+            description="pseudo-landmarks: template vertices spread by farthest-point sampling, each carried to every "
+            "member by the member's map; 413 past CURVEFM_MAX_PSEUDO_LANDMARKS",
+        ),
+    ] = 0,
+    run: Annotated[
+        str | None,
+        Query(
+            max_length=16,
+            description="a finished run: its members, each with the curves its job refined and its pointwise map "
+            "(map_template_to_member), instead of every member's live session",
+        ),
+    ] = None,
+    complete_only: Annotated[
+        bool, Query(description="leave out the members that do not answer every template curve (else 409)")
+    ] = False,
+    template: Annotated[bool, Query(description="the template as the first specimen")] = False,
+) -> Response:
+    """The collection's correspondences as landmark files with one specimen per member (docs: collections,
+    formats): every template curve's endpoints, ``semilandmarks`` points along each at equal arc-length steps and
+    ``pseudo`` pseudo-landmarks, in the same order on every member. ``landmarks.tps`` (``LM3=``, ``ID=`` the
+    member and its shape), ``morphologika.txt``, ``curveslide.csv`` (geomorph's sliders, 1-based) and
+    ``pseudo_landmarks.csv`` (per member and pseudo-landmark: the template vertex, the member vertex, file ids, and
+    its position). Whoever may read the collection; 409 names the members that lack template curves."""
+    record = collection_for(services, user, collection_id, "read")
+    limit = services.settings.max_pseudo_landmarks
+    if pseudo > limit:
+        raise LimitExceeded("max_pseudo_landmarks", limit, f"{pseudo} pseudo-landmarks")
+    if export == "pseudo_landmarks.csv" and not pseudo:
+        raise InvalidInput("pseudo_landmarks.csv lists the pseudo-landmarks: ask for some (?pseudo=N)")
+    configuration = _project(services, record, semilandmarks, pseudo, run, complete_only, template)
+    media, write = COLLECTION_EXPORTS[export]
+    filename = f"collection_{collection_id}_{run or 'live'}_{export}"
+    return Response(write(configuration), media_type=media, headers=attachment(filename))
+
+
+def _project(
+    services: Services,
+    record: CollectionRecord,
+    semilandmarks: int,
+    pseudo: int,
+    run_id: str | None,
+    complete_only: bool,
+    with_template: bool,
+) -> Configuration:
+    """The configuration of the collection's members (live) or of a run's (its jobs' snapshots and maps)."""
+    template_curves = [curve.id for curve in record.curves]
+    if run_id is None:
+        members = record.members
+        sessions = {m.id: services.sessions.record(m.session) for m in members}
+    else:
+        members = [record.member(member_id) for member_id in record.run(run_id).members]
+        maps = {m.member: m for m in _maps(services, record, run_id, [m.id for m in members])[1]}
+        sessions = {m.id: _refined_session(services, maps[m.id].job) for m in members}
+    incomplete = {m.id: missing_curves(sessions[m.id], template_curves) for m in members}
+    incomplete = {member_id: curves for member_id, curves in incomplete.items() if curves}
+    if incomplete and not complete_only:
+        named = "; ".join(f"{member_id} lacks {', '.join(curves)}" for member_id, curves in incomplete.items())
+        raise Conflict(
+            f"members of collection {record.id} do not answer every template curve ({named}); answer them, or "
+            "export the members that do (complete_only=true)"
+        )
+    members = [m for m in members if m.id not in incomplete]
+    if not members:
+        raise Conflict(f"no member of collection {record.id} answers every template curve yet")
+    names = services.shapes.names([record.template, *(m.shape for m in members)])
+    template_mesh = services.live.mesh(record.template, "template")
+    on_template = template_pseudo(template_mesh, pseudo) if pseudo else None
+    shapes = []
+    for member in members:
+        mesh = services.live.mesh(member.shape, "member")
+        mapped = None
+        if on_template is not None and run_id is None:
+            mapped = live_mapped(services.sessions, member.session, on_template)
+        elif on_template is not None:
+            mapped = run_mapped(template_mesh, mesh, maps[member.id].arrays["map_template_to_member"], on_template)
+        name = f"{member.id} {names.get(member.shape) or member.shape[:12]}"
+        shapes.append(MemberShape(name, sessions[member.id], mesh, mapped))
+    template_name = names.get(record.template) or record.template[:12]
+    return project_configuration(
+        template_mesh, template_name, template_curves, shapes, semilandmarks, on_template, with_template
+    )
+
+
+def _refined_session(services: Services, job_id: str) -> SessionRecord:
+    """The member session as its refinement job refined it (the snapshot it was given)."""
+    stored = services.queue.records.load(job_id)
+    if stored is None:
+        raise Conflict(f"job {job_id} has no stored session snapshot; run the members again")
+    return SessionRecord.model_validate(stored.kwargs["session"])
 
 
 def _maps(services: Services, record: CollectionRecord, run_id: str, only: list[str] | None = None):

@@ -19,7 +19,7 @@ from pydantic import AfterValidator, BeforeValidator, Field, SecretStr, Validati
 from pydantic_settings import NoDecode
 
 from curvefm.errors import InvalidInput
-from curvefm.morphometrics import DEFAULT_SNAP_TOLERANCE
+from curvefm.morphometrics import DEFAULT_SNAP_TOLERANCE, MAX_PSEUDO_LANDMARKS
 from curvefm.records.sessions import MAX_SESSION_BYTES
 from curvefm.session import DEFAULT_LOCK_TIMEOUT_S, SessionLimits
 from curvefm.store import default_data_dir
@@ -29,7 +29,15 @@ DEFAULT_MAX_UPLOAD_BYTES = 200 * 1024 * 1024
 DEFAULT_MAX_BODY_BYTES = 4 * 1024 * 1024
 DEFAULT_MAX_JSON_DEPTH = 32  # the published bodies nest at most 5 deep; Python's parser fails near 1,000
 SESSION_LIMITS = tuple(f.name for f in fields(SessionLimits))
-LIMITS = ("max_upload_bytes", "max_body_bytes", "max_json_depth", "max_session_bytes", *SESSION_LIMITS)
+LIMITS = (
+    "max_upload_bytes",
+    "max_body_bytes",
+    "max_json_depth",
+    "max_session_bytes",
+    *SESSION_LIMITS,
+    "max_webhooks",
+    "max_pseudo_landmarks",
+)
 """The limits: each a positive integer, read from ``CURVEFM_<NAME>`` (``CURVEFM_MAX_K``) and named in its error."""
 LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
 ANY_HOST = "*"
@@ -117,6 +125,35 @@ class Settings(QueueSettings):
     max_curves: Positive = _session_limit("max_curves")
     max_k: Positive = _session_limit("max_k")
     max_members: Positive = _session_limit("max_members")
+    max_webhooks: Positive = Field(10, description="The most webhooks one collection may have.")
+    max_pseudo_landmarks: Positive = Field(
+        MAX_PSEUDO_LANDMARKS,
+        description="The most pseudo-landmarks a collection's morphometrics export may ask for (each is mapped to "
+        "every member, so the work grows with both).",
+    )
+    webhook_allow_private: bool = Field(
+        False,
+        description="Let webhooks post to loopback, private, link-local and other internal addresses. Off, a "
+        "webhook's URL may not name one, and a delivery whose host resolves to one fails: users cannot make the "
+        "server reach what only it can reach (SSRF).",
+    )
+    webhook_timeout_s: Timeout = Field(
+        10.0, description="Seconds a webhook delivery may take (connecting, sending, the answer) before it fails."
+    )
+    webhook_retries: Count = Field(
+        5,
+        description="How often a failed webhook delivery (no answer, or not 2xx) is tried again before it is marked "
+        "failed; the waits between tries start at webhook_retry_delay_s and double.",
+    )
+    webhook_retry_delay_s: Timeout = Field(
+        10.0, description="Seconds before the first retry of a failed webhook delivery (then doubling)."
+    )
+    webhook_poll_s: Timeout = Field(
+        1.0, description="Seconds between two looks of an API process for webhook deliveries that are due."
+    )
+    webhook_log_size: Positive = Field(
+        100, description="Deliveries kept per webhook (GET /collections/{id}/webhooks/{webhook}/deliveries)."
+    )
     job_retries: Count = Field(
         1, description="How often a job whose worker died is run again before it is marked failed (with Redis)."
     )
