@@ -20,6 +20,7 @@ from curvefm.service import (
     routes_collections,
     routes_events,
     routes_jobs,
+    routes_reviews,
     routes_sessions,
     routes_shapes,
 )
@@ -142,7 +143,16 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.add_middleware(RateLimit, settings=settings, buckets=buckets, exempt=is_unlimited)
     app.add_middleware(HostCheck, allowed=settings.allowed_hosts)
     app.add_middleware(SecurityHeaders, csp=ui_csp(INDEX_HTML), docs_csp=docs_csp(DOCS_PAGES.values()))
-    routes = (routes_auth, routes_shapes, routes_sessions, routes_events, routes_collections, routes_jobs, routes_audit)
+    routes = (
+        routes_auth,
+        routes_shapes,
+        routes_sessions,
+        routes_events,
+        routes_collections,
+        routes_reviews,
+        routes_jobs,
+        routes_audit,
+    )
     for module in routes:
         app.include_router(module.router)
     app.include_router(routes_jobs.public)

@@ -62,7 +62,16 @@ from curvefm.service.models import (
 )
 from curvefm.service.openapi import SchemaRoute
 from curvefm.service.owned import COLLECTIONS, LIMIT_HELP, OFFSET_HELP, TOTAL_HEADER, TOTAL_SCHEMA, discard_job, paged
-from curvefm.service.permissions import REFUSALS, capabilities, check_collection, collection_for, session_for
+from curvefm.service.permissions import (
+    REFUSALS,
+    capabilities,
+    check_annotator,
+    check_collection,
+    collection_for,
+    refuse_locked,
+    session_for,
+)
+from curvefm.service.routes_reviews import review_view
 from curvefm.service.routes_sessions import IfMatch, converter_params, expected_revision
 from curvefm.service.routes_shapes import store_upload
 from curvefm.session import BasisNeed, SessionRecord, basis_available
@@ -244,18 +253,43 @@ def answer_template_curve(
     services: ServicesDep,
     user: CurrentUser,
     if_match: IfMatch = None,
+    annotator: Annotated[
+        str | None,
+        Query(max_length=64, description="answer in this annotator's further annotation of the member instead"),
+    ] = None,
 ) -> CurveEdit:
     """Answer a template curve on a member: ``target`` (clicked on the member) becomes a curve of the member's
     session whose source is the template curve's path; its maps update as in a session. Answering a template
     curve again replaces the earlier answer. Extra curves (answering no template curve) go through
-    ``POST /sessions/{session}/curves``; 409 while the member's basis is not ready. ``If-Match`` names the member
-    session's revision the answer is based on, as for a session's edits."""
-    check_collection(services, user, collection_id, "answer", member_id)
+    ``POST /sessions/{session}/curves``; 409 while the member's basis is not ready, or while it is submitted or
+    accepted in review. ``If-Match`` names the member session's revision the answer is based on, as for a
+    session's edits. ``annotator``: the further annotation that annotator makes of the member (its annotator, a
+    manager, an owner or an admin)."""
+    if annotator is None:
+        check_collection(services, user, collection_id, "answer", member_id)
+        session_id = services.collections.record(collection_id).member(member_id).session
+        refuse_locked(services, session_id)
+    else:
+        session_id = _further_annotation(services, user, collection_id, member_id, annotator)
     options = body.model_dump(exclude={"template_curve", "target"})
     curve, summary = services.collections.answer(
-        collection_id, member_id, body.template_curve, body.target, expected_revision(if_match), **options
+        collection_id, member_id, body.template_curve, body.target, expected_revision(if_match), session_id, **options
     )
     return CurveEdit(curve=curve, map=summary)
+
+
+def _further_annotation(services: Services, user: User, collection_id: str, member_id: str, annotator: str) -> str:
+    """The session of ``annotator``'s further annotation of the member, when ``user`` may answer in it (404: no
+    such annotation)."""
+    held = check_collection(services, user, collection_id, "answer")
+    annotations = services.collections.records.annotations(collection_id)
+    mine = [a for a in annotations if a.member_id == member_id and a.further and a.user == annotator]
+    if not mine:
+        services.collections.record(collection_id).member(member_id)  # an unknown member is named as such
+        raise NotFound(f"'{shown(annotator)}' makes no further annotation of member {member_id}")
+    if "answer_any" not in held and annotator != user.name:
+        raise Forbidden(f"collection {collection_id}: {REFUSALS['answer_any']}")
+    return mine[0].session_id
 
 
 @router.get("/collections/{collection_id}/roles", response_model=list[RoleGrant], responses=ERRORS)
@@ -376,6 +410,7 @@ def my_work(services: ServicesDep, user: CurrentUser) -> list[WorkItem]:
         record = services.collections.record(work.collection_id)
         names = services.shapes.names([work.shape])
         progress = _progress(record, work.member_id, session, user.name, names.get(work.shape) or work.shape[:12])
+        progress.review = _review_states(services, record.id).get(work.member_id, "open")  # type: ignore[assignment]
         items.append(WorkItem(collection=record.id, collection_name=record.name, **progress.model_dump()))
     return sorted(items, key=lambda item: item.done)
 
@@ -385,12 +420,7 @@ def _annotator(services: Services, collection_id: str, name: str) -> User:
     target = services.users.get(name)
     if target is None:
         raise NotFound(f"no user named '{shown(name)}'")
-    standing = services.collections.records.standing(collection_id, viewer(target))
-    if "answer" not in capabilities(target, standing):
-        raise Conflict(
-            f"user '{target.name}' may not answer in collection {collection_id}; grant them the annotator role "
-            "first (PUT .../roles/{user})"
-        )
+    check_annotator(services, collection_id, target)
     return target
 
 
@@ -408,6 +438,9 @@ def _assignments(services: Services, collection_id: str) -> Assignments:
         )
         for m in record.members
     ]
+    states = _review_states(services, collection_id)
+    for progress in members:
+        progress.review = states.get(progress.member, "open")  # type: ignore[assignment]
     by_user: dict[str, list[MemberProgress]] = {}
     for progress in members:
         if progress.assignee is not None:
@@ -422,6 +455,10 @@ def _assignments(services: Services, collection_id: str) -> Assignments:
         for name, mine in sorted(by_user.items())
     ]
     return Assignments(members=members, annotators=annotators)
+
+
+def _review_states(services: Services, collection_id: str) -> dict[str, str]:
+    return {member: review.state for member, review in services.collections.records.reviews(collection_id).items()}
 
 
 def _progress(
@@ -442,7 +479,8 @@ def _progress(
 
 @router.post("/collections/{collection_id}/runs", status_code=202, response_model=RunStatus, responses=RUN_ERRORS)
 def start_run(collection_id: str, body: RunRequest, services: ServicesDep, user: CurrentUser) -> RunStatus:
-    """Refine every member (or ``members``; with ``only_ready``, those of them that have curves) as one job each
+    """Refine every member (or ``members``; with ``only_ready``, those of them that have curves; with
+    ``only_accepted``, those of them a reviewer accepted: 409 when none is) as one job each
     on the workers, with one converter and parameters (as ``POST /sessions/{id}/refine``); 409 names the members
     without curves unless ``only_ready``. A run is admitted once by your concurrent-jobs quota (429 at it); its
     jobs then count towards it until they end. Members left out keep their previous run's jobs. A run is recorded
@@ -455,9 +493,20 @@ def start_run(collection_id: str, body: RunRequest, services: ServicesDep, user:
     def submit(session) -> str:
         return submit_refine(services, session, body.converter, params, user.name, next(admissions)).id
 
-    run = services.collections.start_run(collection_id, body.converter, params, submit, body.members, body.only_ready)
+    members = _accepted(services, record, body.members) if body.only_accepted else body.members
+    run = services.collections.start_run(collection_id, body.converter, params, submit, members, body.only_ready)
     services.audit.record(user.name, "collection.run", collection_id, {"run": run.id, "jobs": len(run.members)})
     return run_status(run, lambda job_id: job_view(services, job_id))
+
+
+def _accepted(services: Services, record: CollectionRecord, members: list[str] | None) -> list[str]:
+    """The members (of ``members``, by default all) a reviewer accepted; 409 when none is."""
+    chosen = [record.member(m).id for m in dict.fromkeys(members)] if members else [m.id for m in record.members]
+    states = _review_states(services, record.id)
+    accepted = [m for m in chosen if states.get(m) == "accepted"]
+    if not accepted:
+        raise Conflict(f"no member of collection {record.id} asked for is accepted yet; a reviewer accepts them")
+    return accepted
 
 
 @router.get("/collections/{collection_id}/runs/{run_id}", response_model=RunStatus, responses=ERRORS)
@@ -558,7 +607,8 @@ def _view(services: Services, collection_id: str, user: User) -> CollectionView:
     ]
     may = capabilities(user, services.collections.records.standing(collection_id, viewer(user)))
     assignees = {member: name for member, (_, name) in services.collections.records.assignees(collection_id).items()}
-    return CollectionView(collection=record, members=members, may=sorted(may), assignees=assignees)
+    reviews = {member: review_view(r) for member, r in services.collections.records.reviews(collection_id).items()}
+    return CollectionView(collection=record, members=members, may=sorted(may), assignees=assignees, reviews=reviews)
 
 
 def _need(record: CollectionRecord, shape: str) -> BasisNeed:
