@@ -78,6 +78,9 @@ def test_a_further_annotation_is_a_session_that_goes_with_its_member(repo):
     standing = collections.annotation_standing(further.id, Viewer(repo["rita"].id))
     assert standing is not None and standing.assignee == repo["rita"].id and standing.collection_id == cid
     assert collections.annotation_standing(repo["session"], Viewer(repo["rita"].id)) is None
+    in_collections = {s.id for s in sessions.page(Viewer(repo["alice"].id), in_collection=True).items}
+    assert in_collections == {repo["session"], further.id}
+    assert not sessions.page(Viewer(repo["alice"].id), in_collection=False).items  # the session list leaves both out
 
     collections.remove_member(cid, "m1")
     for session_id in (further.id, repo["session"]):

@@ -261,8 +261,11 @@ class AnnotationView(BaseModel):
 
 class CurveEndsAgreement(BaseModel):
     template_curve: str
-    start: float = Field(description="geodesic distance between the two answers' starts, by sqrt(area)")
-    end: float = Field(description="between their ends, by sqrt(area)")
+    start: float | None = Field(
+        description="geodesic distance between the two answers' starts, by sqrt(area) (null: on different "
+        "components of the member)"
+    )
+    end: float | None = Field(description="between their ends, by sqrt(area)")
 
 
 class PairAgreementView(BaseModel):
@@ -270,10 +273,11 @@ class PairAgreementView(BaseModel):
     b: str | None = Field(description="the second annotator")
     session_a: str
     session_b: str
-    map_distance: float = Field(
+    map_distance: float | None = Field(
         description="mean geodesic distance on the member between the two maps' images of the compared template "
-        "vertices, by sqrt(area of the member)"
+        "vertices, by sqrt(area of the member), over those on one component (null: none)"
     )
+    unreachable: int = Field(description="compared template vertices whose two images lie on different components")
     endpoint_distance: float | None = Field(description="mean of the curves' start and end distances")
     curves: list[CurveEndsAgreement] = Field(description="per template curve both answered")
 
@@ -281,7 +285,7 @@ class PairAgreementView(BaseModel):
 class MemberAgreement(BaseModel):
     member: str
     pairs: list[PairAgreementView] = Field(description="every pair of the member's annotations with curves")
-    map_distance: float = Field(description="the mean over its pairs")
+    map_distance: float | None = Field(description="the mean over its pairs (null: no distance to compare)")
     flagged: bool = Field(description="map_distance above the threshold: review it")
 
 

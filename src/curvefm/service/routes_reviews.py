@@ -172,11 +172,10 @@ def get_agreement(collection_id: str, services: ServicesDep, user: CurrentUser) 
     threshold = services.settings.agreement_threshold
     members = [_member_agreement(services, record, member, twice[member], rows, threshold) for member in twice]
     pairs = [pair for member in members for pair in member.pairs]
-    ends = [pair.endpoint_distance for pair in pairs if pair.endpoint_distance is not None]
     return AgreementReport(
         members=members,
-        map_distance=float(np.mean([m.map_distance for m in members])) if members else None,
-        endpoint_distance=float(np.mean(ends)) if ends else None,
+        map_distance=_mean([m.map_distance for m in members]),
+        endpoint_distance=_mean([pair.endpoint_distance for pair in pairs]),
         threshold=threshold,
         points=len(rows),
         flagged=[m.member for m in members if m.flagged],
@@ -194,8 +193,14 @@ def _member_agreement(
     member = services.live.mesh(record.member(member_id).shape, "member")
     answers = [_annotated(services, a, rows) for a in annotations]
     pairs = [_pair_view(agreement(a, b, member)) for a, b in combinations(answers, 2)]
-    distance = float(np.mean([p.map_distance for p in pairs]))
-    return MemberAgreement(member=member_id, pairs=pairs, map_distance=distance, flagged=distance > threshold)
+    distance = _mean([p.map_distance for p in pairs])
+    flagged = distance is not None and distance > threshold
+    return MemberAgreement(member=member_id, pairs=pairs, map_distance=distance, flagged=flagged)
+
+
+def _mean(values: list[float | None]) -> float | None:
+    known = [v for v in values if v is not None]
+    return float(np.mean(known)) if known else None
 
 
 def _annotated(services: Services, annotation: Annotation, rows: np.ndarray) -> Annotated:
@@ -220,6 +225,7 @@ def _pair_view(pair: PairAgreement) -> PairAgreementView:
         session_a=pair.a.session,
         session_b=pair.b.session,
         map_distance=pair.map_distance,
+        unreachable=pair.unreachable,
         endpoint_distance=pair.endpoint_distance,
         curves=[CurveEndsAgreement(**vars(c)) for c in pair.curves],
     )
