@@ -16,6 +16,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import partial
+from typing import Literal
 
 from sqlalchemy import ColumnElement, Connection, Select, and_, delete, exists, false, func, insert, or_, select, update
 from sqlalchemy.exc import IntegrityError
@@ -88,7 +89,7 @@ class Work:
     shape: str
 
 
-REVIEW_STATES = ("open", "submitted", "changes_requested", "accepted")
+ReviewState = Literal["open", "submitted", "changes_requested", "accepted"]
 """Where a member stands in review (``open``: never submitted; it holds no row)."""
 LOCKED_STATES = ("submitted", "accepted")
 """The review states in which a member's curves may not change (a reviewer sends it back to reopen it)."""
@@ -99,7 +100,7 @@ class Review:
     """A member's review state, who submitted it and when, who reviewed it last and when, and their comment."""
 
     member_id: str
-    state: str = "open"
+    state: ReviewState = "open"
     submitted_by: str | None = None
     submitted_at: float | None = None
     reviewed_by: str | None = None
@@ -373,8 +374,14 @@ class Collections:
         return {row.member_id: Review(**row._asdict()) for row in rows}
 
     def move_review(
-        self, collection_id: str, member_id: str, to: str, allowed_from: tuple[str, ...], by: int, comment: str = ""
-    ) -> str:
+        self,
+        collection_id: str,
+        member_id: str,
+        to: ReviewState,
+        allowed_from: tuple[ReviewState, ...],
+        by: int,
+        comment: str = "",
+    ) -> ReviewState:
         """Move a member's review to ``to`` (``submitted`` records the submitter, the others the reviewer and
         ``comment``) when it stands in one of ``allowed_from`` (409 otherwise, naming where it stands); returns
         the state it left. One transaction: two reviewers deciding at once cannot both move it."""

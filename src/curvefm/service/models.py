@@ -16,6 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from curvefm.collection import CollectionRecord, MemberStatus
 from curvefm.fmap import DEFAULT_K
 from curvefm.morphometrics import SnappedPoint
+from curvefm.records.collections import ReviewState
 from curvefm.session import (
     EXAMPLE_PATHS,
     NAME_LENGTH,
@@ -211,7 +212,6 @@ class SpreadRequest(BaseModel):
     members: list[str] | None = Field(None, description="the members to assign (default: those assigned to no one)")
 
 
-ReviewState = Literal["open", "submitted", "changes_requested", "accepted"]
 REVIEW_HELP = (
     "open (never submitted), submitted (waiting for a reviewer; its curves are locked), changes_requested (sent "
     "back with a comment), accepted (its curves are locked)"

@@ -28,6 +28,7 @@ from curvefm.collection import (
     write_zip,
 )
 from curvefm.errors import Conflict, Forbidden, InvalidInput, NotFound, shown
+from curvefm.records.collections import ReviewState
 from curvefm.records.common import MAX_PAGE
 from curvefm.service.auth import AUTHENTICATED, CurrentUser
 from curvefm.service.deps import (
@@ -402,15 +403,17 @@ def get_assignments(collection_id: str, services: ServicesDep, user: CurrentUser
 def my_work(services: ServicesDep, user: CurrentUser) -> list[WorkItem]:
     """The members assigned to you in every collection you may still read: those not done first (the first is
     what is next), the most recently changed collection first, members in order."""
-    items = []
+    items, states = [], ReviewStates(services)
     for work in services.collections.records.work(user.id):
         if "read" not in capabilities(user, services.collections.records.standing(work.collection_id, viewer(user))):
             continue
         session = services.sessions.record(work.session_id)
         record = services.collections.record(work.collection_id)
         names = services.shapes.names([work.shape])
-        progress = _progress(record, work.member_id, session, user.name, names.get(work.shape) or work.shape[:12])
-        progress.review = _review_states(services, record.id).get(work.member_id, "open")  # type: ignore[assignment]
+        shape_name = names.get(work.shape) or work.shape[:12]
+        progress = _progress(
+            record, work.member_id, session, user.name, shape_name, states.of(record.id, work.member_id)
+        )
         items.append(WorkItem(collection=record.id, collection_name=record.name, **progress.model_dump()))
     return sorted(items, key=lambda item: item.done)
 
@@ -428,6 +431,7 @@ def _assignments(services: Services, collection_id: str) -> Assignments:
     record = services.collections.record(collection_id)
     assigned = services.collections.records.assignees(collection_id)
     names = services.shapes.names([m.shape for m in record.members])
+    states = ReviewStates(services)
     members = [
         _progress(
             record,
@@ -435,12 +439,10 @@ def _assignments(services: Services, collection_id: str) -> Assignments:
             services.sessions.record(m.session),
             assigned[m.id][1] if m.id in assigned else None,
             names.get(m.shape) or m.shape[:12],
+            states.of(collection_id, m.id),
         )
         for m in record.members
     ]
-    states = _review_states(services, collection_id)
-    for progress in members:
-        progress.review = states.get(progress.member, "open")  # type: ignore[assignment]
     by_user: dict[str, list[MemberProgress]] = {}
     for progress in members:
         if progress.assignee is not None:
@@ -457,12 +459,26 @@ def _assignments(services: Services, collection_id: str) -> Assignments:
     return Assignments(members=members, annotators=annotators)
 
 
-def _review_states(services: Services, collection_id: str) -> dict[str, str]:
-    return {member: review.state for member, review in services.collections.records.reviews(collection_id).items()}
+class ReviewStates:
+    """Members' review states, read once per collection asked about."""
+
+    def __init__(self, services: Services):
+        self.records = services.collections.records
+        self.read: dict[str, dict[str, ReviewState]] = {}
+
+    def of(self, collection_id: str, member_id: str) -> ReviewState:
+        if collection_id not in self.read:
+            self.read[collection_id] = {m: r.state for m, r in self.records.reviews(collection_id).items()}
+        return self.read[collection_id].get(member_id, "open")
 
 
 def _progress(
-    record: CollectionRecord, member_id: str, session: SessionRecord, assignee: str | None, shape_name: str
+    record: CollectionRecord,
+    member_id: str,
+    session: SessionRecord,
+    assignee: str | None,
+    shape_name: str,
+    review: ReviewState = "open",
 ) -> MemberProgress:
     templates = {c.id for c in record.curves}
     answered = len({c.spec.template_curve for c in session.curves} & templates)
@@ -474,6 +490,7 @@ def _progress(
         curves_done=answered,
         curves_total=len(templates),
         done=bool(templates) and answered == len(templates),
+        review=review,
     )
 
 
@@ -502,8 +519,8 @@ def start_run(collection_id: str, body: RunRequest, services: ServicesDep, user:
 def _accepted(services: Services, record: CollectionRecord, members: list[str] | None) -> list[str]:
     """The members (of ``members``, by default all) a reviewer accepted; 409 when none is."""
     chosen = [record.member(m).id for m in dict.fromkeys(members)] if members else [m.id for m in record.members]
-    states = _review_states(services, record.id)
-    accepted = [m for m in chosen if states.get(m) == "accepted"]
+    states = ReviewStates(services)
+    accepted = [m for m in chosen if states.of(record.id, m) == "accepted"]
     if not accepted:
         raise Conflict(f"no member of collection {record.id} asked for is accepted yet; a reviewer accepts them")
     return accepted

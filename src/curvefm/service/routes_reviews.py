@@ -20,7 +20,7 @@ from curvefm.collection import Annotated, CollectionRecord, PairAgreement, agree
 from curvefm.errors import Conflict, NotFound, shown
 from curvefm.geometry import farthest_point_sampling
 from curvefm.pointwise import pointwise_from_both
-from curvefm.records.collections import Annotation, Review
+from curvefm.records.collections import Annotation, Review, ReviewState
 from curvefm.service.auth import AUTHENTICATED, CurrentUser
 from curvefm.service.deps import Services, ServicesDep
 from curvefm.service.errors import error_responses
@@ -44,7 +44,7 @@ router = APIRouter(
     responses=error_responses(401, 403, 503, 507),
 )
 ERRORS = error_responses(404, 409, 422)
-DECISIONS = {
+DECISIONS: dict[str, tuple[ReviewState, tuple[ReviewState, ...]]] = {
     "accept": ("accepted", ("submitted",)),
     "request_changes": ("changes_requested", ("submitted", "accepted")),
 }
@@ -98,8 +98,8 @@ def _moved(
     user: User,
     collection_id: str,
     member_id: str,
-    to: str,
-    allowed_from: tuple[str, ...],
+    to: ReviewState,
+    allowed_from: tuple[ReviewState, ...],
     comment: str = "",
 ) -> MemberReview:
     records = services.collections.records
