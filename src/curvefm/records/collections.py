@@ -7,6 +7,8 @@ transaction as the member (:meth:`Collections.add_members`), deleting the collec
 (:meth:`Collections.delete` returns their jobs, whose results the caller deletes), and deleting a member's
 session alone removes the member (the collection stays readable). A run remembers each member's job id; when
 the job's record expires, ``run_members.job_id`` becomes NULL and :meth:`Collections.expired_jobs` names it.
+Roles, assignments, review states (``member_reviews``) and further annotations (``member_annotations``, each with a
+session of its own that goes with its member) are rows beside them.
 """
 
 from __future__ import annotations
@@ -604,7 +606,8 @@ class Collections:
             return jobs + self.sessions.delete(session_id, tx)  # (moves the collection to its next revision)
 
     def delete(self, collection_id: str, conn: Connection | None = None) -> builtins.list[str]:
-        """Delete the collection and its member sessions; returns the refinement jobs run from those."""
+        """Delete the collection, its member sessions and its further annotations' sessions; returns the refinement
+        jobs run from those."""
         with self.db.joined(conn) as tx:
             if _revision(tx, collection_id) is None:
                 raise UnknownCollection(collection_id)
