@@ -29,7 +29,7 @@ from curvefm.collection import (
 )
 from curvefm.errors import Conflict, Forbidden, InvalidInput, NotFound, shown
 from curvefm.records.collections import ReviewState
-from curvefm.records.common import MAX_PAGE
+from curvefm.records.common import MAX_OFFSET, MAX_PAGE
 from curvefm.service.auth import AUTHENTICATED, CurrentUser
 from curvefm.service.deps import (
     JOB_ERRORS,
@@ -139,7 +139,7 @@ def list_collections(
     services: ServicesDep,
     user: CurrentUser,
     limit: Annotated[int | None, Query(ge=1, le=MAX_PAGE, description=LIMIT_HELP)] = None,
-    offset: Annotated[int, Query(ge=0, description=OFFSET_HELP)] = 0,
+    offset: Annotated[int, Query(ge=0, le=MAX_OFFSET, description=OFFSET_HELP)] = 0,
 ) -> list[CollectionSummary]:
     """The collections you may see (yours, those shared with the lab, and for admins all), the most recently
     changed first: ``limit`` of them from ``offset`` (without ``limit``: all from ``offset``). The
