@@ -108,6 +108,12 @@ class World:
             self.lab.owner.post(f"/collections/{self.collection}/webhooks", json=body).raise_for_status().json()["id"]
         )
 
+    def submitted_collection(self) -> str:
+        """A fresh collection of the owner whose member m1 (with the session's curve) is submitted for review."""
+        collection_id = self.fresh_collection()
+        self.lab.owner.post(f"/collections/{collection_id}/members/m1/submit").raise_for_status()
+        return collection_id
+
     def fresh_member(self) -> str:
         """A new member of the owner's collection (on a new shape)."""
         members = f"/collections/{self.collection}/members"
@@ -241,6 +247,20 @@ RULES: dict[tuple[str, str], Rule] = {
     ("get", "/collections/{collection_id}/webhooks/{webhook_id}/deliveries"): Rule(
         lambda w: Call(collection(w, webhook_id=w.fresh_webhook())), other=404
     ),
+    ("post", "/collections/{collection_id}/members/{member_id}/submit"): Rule(
+        lambda w: Call({"collection_id": w.fresh_collection(), "member_id": "m1"}), other=404
+    ),
+    ("post", "/collections/{collection_id}/members/{member_id}/review"): Rule(
+        lambda w: Call({"collection_id": w.submitted_collection(), "member_id": "m1"}, json={"decision": "accept"}),
+        other=404,
+    ),
+    ("get", "/collections/{collection_id}/reviews"): Rule(lambda w: Call(collection(w)), other=404),
+    ("post", "/collections/{collection_id}/members/{member_id}/annotations"): Rule(
+        lambda w: Call({"collection_id": w.fresh_collection(), "member_id": "m1"}, json={"user": TEST_USER}),
+        other=404,
+    ),
+    ("get", "/collections/{collection_id}/annotations"): Rule(lambda w: Call(collection(w)), other=404),
+    ("get", "/collections/{collection_id}/agreement"): Rule(lambda w: Call(collection(w)), other=404),
     ("post", "/collections/{collection_id}/runs"): Rule(
         lambda w: Call(collection(w), json={"converter": "nearest-neighbor", "members": ["m1"]}), other=404
     ),

@@ -220,3 +220,29 @@ def test_a_member_answer_on_an_old_revision_is_refused(client, shape_ids):
         c.answer(member["id"], "t1", CURVES[1][1], if_revision=seen)
     assert error.value.body["revision"] == member_session.refresh()["revision"] == seen + 1
     assert [curve.path_target for curve in member_session.curves] == [first.path_target]
+
+
+def test_a_member_is_reviewed_run_when_accepted_and_annotated_twice(client, api, shape_ids):
+    s = client.session(*shape_ids, k=K)
+    s.add_curve(*CURVES[0])
+    c = client.collection(shape_ids[0], from_session=s.id, k=K, name="reviewed")
+    tokens = {name: add_user(api.data_dir, name) for name in ("rhea", "abel")}
+    c.grant("rhea", "reviewer")
+    c.grant("abel", "annotator")
+    assert c.submit("m1")["state"] == "submitted"
+    with Client(api.url, token=tokens["rhea"]) as rhea:
+        reviewed = rhea.open_collection(c.id)
+        back = reviewed.request_changes("m1", "t1 is off")
+        assert (back["state"], back["reviewed_by"], back["comment"]) == ("changes_requested", "rhea", "t1 is off")
+        c.submit("m1")
+        assert reviewed.accept("m1")["state"] == "accepted"
+    assert [(r["member"], r["state"]) for r in c.reviews()] == [("m1", "accepted")]
+    assert [m["member"] for m in c.wait_run(c.run(only_accepted=True)["id"], timeout=120)["members"]] == ["m1"]
+
+    assert c.annotate("m1", "abel")["further"] is True
+    with Client(api.url, token=tokens["abel"]) as abel:
+        abel.open_collection(c.id).answer("m1", "t1", CURVES[1][1], annotator="abel")
+    assert [(a["annotator"], a["further"]) for a in c.annotations()] == [(None, False), ("abel", True)]
+    (member,) = c.agreement()["members"]
+    assert member["member"] == "m1" and member["pairs"][0]["curves"][0]["template_curve"] == "t1"
+    assert member["pairs"][0]["curves"][0]["start"] > 0  # the two answers start at different vertices

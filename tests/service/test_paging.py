@@ -90,7 +90,7 @@ def test_shapes_page_by_name_and_upload_time_with_the_total(lab):
 
 
 @pytest.mark.parametrize("path", LISTS)
-@pytest.mark.parametrize("params", [{"limit": 0}, {"limit": 501}, {"offset": -1}, {"limit": "ten"}])
+@pytest.mark.parametrize("params", [{"limit": 0}, {"limit": 501}, {"offset": -1}, {"offset": 2**63}, {"limit": "ten"}])
 def test_pages_out_of_bounds_are_refused_with_the_published_error(lab, path, params):
     expect(lab.owner.get(path, params=params), 422, "invalid")
 

@@ -1,9 +1,9 @@
 """The published OpenAPI schema is the truth: schemathesis with ``--checks all`` (status codes, content types,
 response bodies and headers, ``Allow`` on 405, schema-valid requests accepted and invalid ones rejected) finds
-nothing against a real server with Redis and a worker, seeded with a real shape, session, curve, finished job
-and result file. Three runs: the project's own seed with a few hundred cases, another seed, and a third against a
-server whose rate limit answers most of its cases 429 (documented on every operation); each is bounded by its
-count of examples, and repeatable."""
+nothing against a real server with Redis and a worker, seeded with a real shape, session, curve, finished job,
+result file and collection with a member. Three runs: the project's own seed with a few hundred cases, another
+seed, and a third against a server whose rate limit answers most of its cases 429 (documented on every operation);
+each is bounded by its count of examples, and repeatable."""
 
 from __future__ import annotations
 
@@ -91,9 +91,12 @@ def schemathesis_config(api, session_id: str, job: dict, rate_limited: bool) -> 
     """``schemathesis.toml``: the ids of real resources for the path parameters, so that the cases reach the
     routes' logic instead of their 404s; a rate-limited server may answer any case 429."""
     record = api.client.get(f"/sessions/{session_id}").raise_for_status().json()
+    (collection,) = api.client.get("/collections").raise_for_status().json()
     parameters = {
         "path.shape_id": record["source"],
         "path.session_id": session_id,
+        "path.collection_id": collection["id"],
+        "path.member_id": "m1",
         "path.curve_id": record["curves"][0]["id"],
         "path.job_id": job["id"],
         "path.name": "map_target_to_source.txt",
@@ -130,8 +133,9 @@ UNLIMITED = {"CURVEFM_QUOTA_SESSIONS": "0", "CURVEFM_QUOTA_JOBS": "0", "CURVEFM_
 
 
 def seeded_server(processes, redis_url: str, redis_prefix: str, folder: Path):
-    """An API and a worker on Redis, with the demo pair, a session with one curve and a finished refinement;
-    the API has an admin, whose token is ``api.token``."""
+    """An API and a worker on Redis, with the demo pair, a session with one curve and a finished refinement, and
+    a collection made from the session (its member m1 answered); the API has an admin, whose token is
+    ``api.token``."""
     token = users_of(folder / "data").add("schemathesis", admin=True)
     env = {"CURVEFM_QUEUE_PREFIX": redis_prefix, **UNLIMITED}
     api = processes.api(folder / "data", redis_url=redis_url, env=env, args=["--rate-limit", "0"])
@@ -143,6 +147,8 @@ def seeded_server(processes, redis_url: str, redis_prefix: str, folder: Path):
     job = api.client.post(f"/sessions/{session_id}/refine", json={}).raise_for_status().json()
     job = api.wait_job(job["id"])
     assert job["state"] == "finished", job
+    source = api.client.get(f"/sessions/{session_id}").raise_for_status().json()["source"]
+    api.client.post("/collections", json={"template": source, "from_session": session_id}).raise_for_status()
     return api, session_id, job
 
 

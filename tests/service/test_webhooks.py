@@ -16,6 +16,7 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 
 import pytest
 from support.lab import CURVE, Lab
+from support.processes import TEST_USER
 from support.redis_servers import delete_prefix
 
 from curvefm.client import Client
@@ -150,6 +151,18 @@ def test_events_are_posted_signed(lab, receiver, collection):
     (post,) = receiver.received("/ok", "member.completed")
     assert signed_by(secret, post) and json.loads(post["body"])["data"]["member"] == member["id"]
 
+    member_path = f"/collections/{collection}/members/{member['id']}"
+    lab.owner.post(f"{member_path}/submit").raise_for_status()
+    (post,) = receiver.received("/ok", "member.submitted")
+    assert json.loads(post["body"])["data"] == {"member": member["id"], "by": TEST_USER}
+    lab.owner.post(f"{member_path}/review", json={"decision": "accept", "comment": "fine"}).raise_for_status()
+    (post,) = receiver.received("/ok", "member.accepted")
+    assert signed_by(secret, post) and json.loads(post["body"])["data"] == {
+        "member": member["id"],
+        "by": TEST_USER,
+        "comment": "fine",
+    }
+
     run = lab.finished_run(lab.owner, collection)
     (post,) = receiver.received("/ok", "run.ended")
     data = json.loads(post["body"])["data"]
@@ -167,10 +180,10 @@ def test_events_are_posted_signed(lab, receiver, collection):
     with receiver.lock:
         mine = [json.loads(p["body"]) for p in receiver.posts if p["path"] == "/ok"]
     assert sorted(b["event"] for b in mine if b["collection"] == collection) == sorted(
-        ["member.added", "member.completed", "run.ended", "member.removed"]
+        ["member.added", "member.completed", "member.submitted", "member.accepted", "run.ended", "member.removed"]
     )
     log = lab.owner.get(f"/collections/{collection}/webhooks/{hook['id']}/deliveries").raise_for_status()
-    assert log.headers["X-Total-Count"] == "4"
+    assert log.headers["X-Total-Count"] == "6"
     assert {(d["state"], d["attempts"], d["last_status"]) for d in log.json()} == {("delivered", 1, 204)}
 
 

@@ -236,3 +236,40 @@ def test_an_annotator_finds_their_work_and_a_manager_grants_a_role(browser, serv
     manager.wait_for_selector('#member-list li[data-member-id="m1"]:has-text("· ann")')
     assert api.client.get(f"{base}/assignments").json()["annotators"][0]["user"] == "ann"
     assert not errors, errors
+
+
+def test_a_member_is_submitted_sent_back_and_accepted_in_the_panel(browser, served):
+    """The owner (who may answer and review) moves a member with both template curves answered through review with
+    the panel's buttons; the states shown are the API's."""
+    api, view = served
+    template, shape = view["collection"]["template"], view["members"][0]["shape"]
+    body = {"name": "reviewed", "template": template, "curves": TEMPLATE_CURVES, "members": [shape], "k": K}
+    made = api.client.post("/collections", json=body).raise_for_status().json()
+    collection_id, base = made["collection"]["id"], f"/collections/{made['collection']['id']}"
+    for number, curve in enumerate(TEMPLATE_CURVES, 1):
+        answer = {"template_curve": f"t{number}", "target": curve["waypoints"]}
+        api.client.post(f"{base}/members/m1/curves", json=answer).raise_for_status()
+    page = browser.new_context(viewport=VIEWPORT).new_page()
+    errors = []
+    page.on("pageerror", lambda error: errors.append(str(error)))
+    page.on("dialog", lambda dialog: dialog.accept("t2 ends too low"))
+    open_session(page, api.url, made["members"][0]["session"], token=api.token)
+    page.click("#collections-panel summary")
+    page.select_option("#collection-select", collection_id)
+    row = '#member-list li[data-member-id="m1"]'
+    page.wait_for_selector(f'{row} .review[data-review="open"]')
+    assert page.is_hidden(f'{row} button[data-action="accept"]')
+
+    page.click(f'{row} button[data-action="submit"]')
+    page.wait_for_selector(f'{row} .review[data-review="submitted"]')
+    assert "submitted by tester" in page.get_attribute(f"{row} .review", "title")
+    page.click(f'{row} button[data-action="request-changes"]')
+    page.wait_for_selector(f'{row} .review[data-review="changes_requested"]')
+    assert "t2 ends too low" in page.text_content(f"{row} .review")
+    assert api.client.get(f"{base}/reviews").json()[0]["comment"] == "t2 ends too low"
+    page.click(f'{row} button[data-action="submit"]')
+    page.click(f'{row} button[data-action="accept"]')
+    page.wait_for_selector(f'{row} .review[data-review="accepted"]')
+    assert page.is_hidden(f'{row} button[data-action="submit"]')
+    assert [r["state"] for r in api.client.get(f"{base}/reviews").json()] == ["accepted"]
+    assert not errors, errors

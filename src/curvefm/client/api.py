@@ -463,13 +463,56 @@ class Collection:
         return self.info["members"]
 
     def answer(
-        self, member: str, template_curve: str, target: list[int], if_revision: int | None = None, **options: Any
+        self,
+        member: str,
+        template_curve: str,
+        target: list[int],
+        if_revision: int | None = None,
+        annotator: str | None = None,
+        **options: Any,
     ) -> Curve:
         """Answer a template curve on a member with ``target`` (waypoints on the member); ``if_revision``: only
-        while the member's session is at that revision (as :meth:`Session.add_curve`)."""
+        while the member's session is at that revision (as :meth:`Session.add_curve`); ``annotator``: in that
+        annotator's further annotation of the member (:meth:`annotate`)."""
         body = {"template_curve": template_curve, "target": list(target), **options}
         path, headers = f"{self.path}/members/{member}/curves", _if_match(if_revision)
-        return Curve.of(self.client.json("POST", path, json=body, headers=headers)["curve"])
+        params = {"annotator": annotator} if annotator else None
+        return Curve.of(self.client.json("POST", path, json=body, headers=headers, params=params)["curve"])
+
+    def submit(self, member: str) -> dict[str, Any]:
+        """Submit a member for review (every template curve answered); returns its review (``state``,
+        ``submitted_by``, ``submitted_at``, ``reviewed_by``, ``reviewed_at``, ``comment``)."""
+        return self.client.json("POST", f"{self.path}/members/{member}/submit")
+
+    def accept(self, member: str, comment: str = "") -> dict[str, Any]:
+        """Accept a submitted member (a reviewer, manager or owner); returns its review."""
+        return self._review(member, "accept", comment)
+
+    def request_changes(self, member: str, comment: str) -> dict[str, Any]:
+        """Send a submitted or accepted member back to its annotator with ``comment``; returns its review."""
+        return self._review(member, "request_changes", comment)
+
+    def _review(self, member: str, decision: str, comment: str) -> dict[str, Any]:
+        body = {"decision": decision, "comment": comment}
+        return self.client.json("POST", f"{self.path}/members/{member}/review", json=body)
+
+    def reviews(self) -> list[dict[str, Any]]:
+        """Every member's review, members in order."""
+        return self.client.json("GET", f"{self.path}/reviews")
+
+    def annotate(self, member: str, user: str) -> dict[str, Any]:
+        """Ask the annotator named ``user`` for a further, independent annotation of ``member`` (double
+        annotation); returns it (``session``: where they answer, or :meth:`answer` with ``annotator=user``)."""
+        return self.client.json("POST", f"{self.path}/members/{member}/annotations", json={"user": user})
+
+    def annotations(self) -> list[dict[str, Any]]:
+        """Every member's annotations (its own session first, then the further ones)."""
+        return self.client.json("GET", f"{self.path}/annotations")
+
+    def agreement(self) -> dict[str, Any]:
+        """Agreement between annotators per member annotated twice or more and for the collection (map and
+        endpoint distances by sqrt(area), members flagged above the threshold)."""
+        return self.client.json("GET", f"{self.path}/agreement")
 
     def roles(self) -> list[dict[str, Any]]:
         """Who holds which role (``user``, ``user_id``, ``role``, ``granted_by``, ``granted_at``), its creator
@@ -507,11 +550,13 @@ class Collection:
         converter: str = "nearest-neighbor",
         members: list[str] | None = None,
         only_ready: bool = False,
+        only_accepted: bool = False,
         **params: Any,
     ) -> dict[str, Any]:
-        """Refine every member (or ``members``; ``only_ready``: those of them that have curves) as jobs; returns
-        the run's status (``id``, per member ``state``)."""
+        """Refine every member (or ``members``; ``only_ready``: those of them that have curves; ``only_accepted``:
+        those a reviewer accepted) as jobs; returns the run's status (``id``, per member ``state``)."""
         body = {"converter": converter, "params": params, "members": members, "only_ready": only_ready}
+        body["only_accepted"] = only_accepted
         return self.client.json("POST", f"{self.path}/runs", json=body)
 
     def wait_run(self, run_id: str, timeout: float | None = None, poll_s: float = 0.5) -> dict[str, Any]:

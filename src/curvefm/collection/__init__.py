@@ -8,9 +8,11 @@ run's maps come as one archive, member-to-member maps composed through the templ
 * ``editing``: :class:`CollectionEditor`, create / add members / answer a template curve / share / delete / runs;
 * ``progress``: where each member and run stands (:class:`JobView` is how a queue's job is seen);
 * ``archive``: a run's maps per member (:class:`MemberMaps`) as ``.npz`` or a zip of text files;
-* ``composition``: member-to-member maps through the template.
+* ``composition``: member-to-member maps through the template;
+* ``agreement``: how far two annotators' answers on a member lie apart (double annotation).
 """
 
+from curvefm.collection.agreement import Annotated, CurveEnds, PairAgreement, agreement
 from curvefm.collection.archive import MemberMaps, composed, write_npz, write_zip
 from curvefm.collection.composition import compose_functional, compose_pointwise
 from curvefm.collection.editing import CollectionEditor, SubmitRefine
@@ -36,6 +38,10 @@ from curvefm.collection.record import (
 )
 
 __all__ = [
+    "Annotated",
+    "CurveEnds",
+    "PairAgreement",
+    "agreement",
     "CollectionCreate",
     "CollectionEditor",
     "CollectionRecord",

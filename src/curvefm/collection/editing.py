@@ -152,6 +152,15 @@ class CollectionEditor:
         self.records.add_members(collection_id, record.revision, added, conn)
         return [member for member, _ in added]
 
+    def add_annotation(self, collection_id: str, member_id: str, user_id: int, conn: Connection | None = None) -> str:
+        """A further annotation of a member by ``user_id`` (double annotation): a new session of the collection's
+        (template -> the member's shape, no curves yet) for them to answer the template curves in; returns its
+        id."""
+        record = self.record(collection_id)
+        session = self._member_session(record, record.member(member_id).shape, ())
+        self.records.add_annotation(collection_id, member_id, user_id, session, conn)
+        return session.id
+
     def remove_member(self, collection_id: str, member_id: str) -> list[str]:
         """Remove a member with its session and its entries in runs; returns the refinement jobs run from its
         session (their results are the caller's to delete)."""
@@ -196,22 +205,25 @@ class CollectionEditor:
         template_curve: str,
         target: list[int],
         expected_revision: int | None = None,
+        session_id: str | None = None,
         **options: Any,
     ) -> tuple[CurveRecord, MapSummary]:
         """Answer ``template_curve`` on a member: ``target`` (waypoints on the member, or a path with
-        ``explicit="target"`` in ``options``) becomes a curve of its session whose source is the template curve's
-        path. A template curve answered before is replaced (its session curve keeps its id). Given the member
-        session's ``expected_revision``, refused when the session is at another."""
+        ``explicit="target"`` in ``options``) becomes a curve of its session (``session_id``: a further
+        annotation's instead) whose source is the template curve's path. A template curve answered before is
+        replaced (its session curve keeps its id). Given the session's ``expected_revision``, refused when the
+        session is at another."""
         record = self.record(collection_id)
         member, template = record.member(member_id), record.template_curve(template_curve)
+        session_id = session_id or member.session
         explicit: bool | Literal["source"] = True if options.pop("explicit", False) else "source"
         spec = CurveSpec(
             source=template.path.tolist(), target=target, explicit=explicit, template_curve=template.id, **options
         )
-        previous = [c.id for c in self.sessions.record(member.session).curves if c.spec.template_curve == template.id]
+        previous = [c.id for c in self.sessions.record(session_id).curves if c.spec.template_curve == template.id]
         if previous:
-            return self.sessions.replace_curve(member.session, previous[0], spec, expected_revision)
-        return self.sessions.add_curve(member.session, spec, expected_revision=expected_revision)
+            return self.sessions.replace_curve(session_id, previous[0], spec, expected_revision)
+        return self.sessions.add_curve(session_id, spec, expected_revision=expected_revision)
 
     # -- sharing and deleting ------------------------------------------------------------------------------
     def share(self, collection_id: str, sharing: Sharing) -> CollectionRecord:
@@ -225,11 +237,11 @@ class CollectionEditor:
     def delete(self, collection_id: str) -> list[str]:
         """Delete the collection and its member sessions (one transaction); returns the refinement jobs run from
         them."""
-        record = self.record(collection_id)
+        sessions = [annotation.session_id for annotation in self.records.annotations(collection_id)]
         jobs = self.records.delete(collection_id)
-        for member in record.members:
-            self.sessions.live.drop(member.session)
-            self.sessions.live.notify(member.session, {"kind": "deleted", "revision": None})
+        for session_id in sessions:
+            self.sessions.live.drop(session_id)
+            self.sessions.live.notify(session_id, {"kind": "deleted", "revision": None})
         return jobs
 
     # -- batch runs ----------------------------------------------------------------------------------------

@@ -47,6 +47,12 @@ The record model (:mod:`.models`; ``->`` a foreign key, with what happens when t
                       run's end), body (the JSON posted), state (pending, delivered, failed), attempts, created_at,
                       next_attempt_at, lease_until (claimed by an API process), last_attempt_at, last_status,
                       last_error: the outbox of the webhooks and their delivery log (:mod:`.webhooks`)
+    member_reviews    (collection_id -> collections CASCADE, member_id) PK, state (submitted, changes_requested,
+                      accepted; no row: open), submitted_by / reviewed_by -> users (SET NULL), submitted_at,
+                      reviewed_at, comment: where a member stands in review (keyed as member_assignments)
+    member_annotations (collection_id -> collections CASCADE, member_id, user_id -> users CASCADE) PK,
+                      session_id -> sessions (CASCADE; unique), created_at: further annotations of a member by
+                      other annotators (double annotation); the repository deletes their sessions with the member
     audit             id PK (append order), time, actor (a name or "cli"), user_id -> users, action, target,
                       detail (JSON)
     legacy_imports    id PK, source, imported_at, counts (JSON): each import of the old JSON-file layout

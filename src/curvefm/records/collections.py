@@ -7,15 +7,18 @@ transaction as the member (:meth:`Collections.add_members`), deleting the collec
 (:meth:`Collections.delete` returns their jobs, whose results the caller deletes), and deleting a member's
 session alone removes the member (the collection stays readable). A run remembers each member's job id; when
 the job's record expires, ``run_members.job_id`` becomes NULL and :meth:`Collections.expired_jobs` names it.
+Roles, assignments, review states (``member_reviews``) and further annotations (``member_annotations``, each with a
+session of its own that goes with its member) are rows beside them.
 """
 
 from __future__ import annotations
 
 import builtins
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import partial
+from typing import Literal
 
 from sqlalchemy import ColumnElement, Connection, Select, and_, delete, exists, false, func, insert, or_, select, update
 from sqlalchemy.exc import IntegrityError
@@ -86,6 +89,37 @@ class Work:
     member_id: str
     session_id: str
     shape: str
+
+
+ReviewState = Literal["open", "submitted", "changes_requested", "accepted"]
+"""Where a member stands in review (``open``: never submitted; it holds no row)."""
+LOCKED_STATES = ("submitted", "accepted")
+"""The review states in which a member's curves may not change (a reviewer sends it back to reopen it)."""
+
+
+@dataclass(frozen=True)
+class Review:
+    """A member's review state, who submitted it and when, who reviewed it last and when, and their comment."""
+
+    member_id: str
+    state: ReviewState = "open"
+    submitted_by: str | None = None
+    submitted_at: float | None = None
+    reviewed_by: str | None = None
+    reviewed_at: float | None = None
+    comment: str = ""
+
+
+@dataclass(frozen=True)
+class Annotation:
+    """An annotator's own session on a member: the member's session (its assignee's) or a further annotation."""
+
+    member_id: str
+    user_id: int | None
+    user: str | None
+    session_id: str
+    further: bool
+    """A further annotation (double annotation), not the member's own session."""
 
 
 @dataclass(frozen=True)
@@ -317,6 +351,152 @@ class Collections:
             ).all()
         return [Work(**row._asdict()) for row in rows]
 
+    # -- review -------------------------------------------------------------------------------------------
+    def reviews(self, collection_id: str) -> dict[str, Review]:
+        """``member id -> Review`` of the members that left ``open``, in the members' order."""
+        r, member = m.MemberReview, m.Member
+        submitter, reviewer = m.User.__table__.alias("submitter"), m.User.__table__.alias("reviewer")
+        with self.db.read() as conn:
+            rows = conn.execute(
+                select(
+                    r.member_id,
+                    r.state,
+                    submitter.c.name.label("submitted_by"),
+                    r.submitted_at,
+                    reviewer.c.name.label("reviewed_by"),
+                    r.reviewed_at,
+                    r.comment,
+                )
+                .join(member, (member.collection_id == r.collection_id) & (member.id == r.member_id))
+                .outerjoin(submitter, submitter.c.id == r.submitted_by)
+                .outerjoin(reviewer, reviewer.c.id == r.reviewed_by)
+                .where(r.collection_id == collection_id)
+                .order_by(member.position)
+            ).all()
+        return {row.member_id: Review(**row._asdict()) for row in rows}
+
+    def move_review(
+        self,
+        collection_id: str,
+        member_id: str,
+        to: ReviewState,
+        allowed_from: tuple[ReviewState, ...],
+        by: int,
+        comment: str = "",
+        then: Callable[[Connection], object] | None = None,
+    ) -> ReviewState:
+        """Move a member's review to ``to`` (``submitted`` records the submitter, the others the reviewer and
+        ``comment``) when it stands in one of ``allowed_from`` (409 otherwise, naming where it stands); returns
+        the state it left. One transaction, which ``then`` joins (an announcement of the move): two reviewers
+        deciding at once cannot both move it."""
+        r = m.MemberReview
+        mine = (r.collection_id == collection_id) & (r.member_id == member_id)
+        with self.db.write() as tx:
+            known = select(m.Member.id).where(m.Member.collection_id == collection_id, m.Member.id == member_id)
+            if tx.execute(known).first() is None:
+                raise NotFound(f"no member '{shown(member_id)}' in collection {collection_id}")
+            row = tx.execute(select(r).where(mine)).first()
+            state = row.state if row else "open"
+            if state not in allowed_from:
+                raise Conflict(
+                    f"member {member_id} of collection {collection_id} is {state.replace('_', ' ')}; it can be "
+                    f"moved to {to.replace('_', ' ')} from {' or '.join(s.replace('_', ' ') for s in allowed_from)}"
+                )
+            kept = row._asdict() if row else {"collection_id": collection_id, "member_id": member_id}
+            change: dict[str, object]
+            if to == "submitted":
+                change = {"submitted_by": by, "submitted_at": now()}
+            else:
+                change = {"reviewed_by": by, "reviewed_at": now(), "comment": comment}
+            tx.execute(delete(r).where(mine))
+            tx.execute(insert(r).values({"comment": "", **kept, **change, "state": to}))
+            if then is not None:
+                then(tx)
+        return state
+
+    def locked_member(self, session_id: str) -> tuple[str, str, str] | None:
+        """``(collection id, member id, review state)`` when the session is a member's whose curves may not change
+        now (:data:`LOCKED_STATES`), else None."""
+        r, member = m.MemberReview, m.Member
+        with self.db.read() as conn:
+            row = conn.execute(
+                select(member.collection_id, member.id, r.state)
+                .join(r, (r.collection_id == member.collection_id) & (r.member_id == member.id))
+                .where(member.session_id == session_id, r.state.in_(LOCKED_STATES))
+            ).first()
+        return None if row is None else (row.collection_id, row.id, row.state)
+
+    # -- further annotations (double annotation) -------------------------------------------------------------
+    def annotations(self, collection_id: str) -> builtins.list[Annotation]:
+        """Every member's annotations: its own session (its assignee's, None: assigned to no one) first, then
+        the further ones by annotator name; members in order."""
+        a, member, x = m.Assignment, m.Member, m.MemberAnnotation
+        with self.db.read() as conn:
+            own = conn.execute(
+                select(member.id, a.user_id, m.User.name, member.session_id)
+                .outerjoin(a, (a.collection_id == member.collection_id) & (a.member_id == member.id))
+                .outerjoin(m.User, m.User.id == a.user_id)
+                .where(member.collection_id == collection_id)
+                .order_by(member.position)
+            ).all()
+            further = conn.execute(
+                select(x.member_id, x.user_id, m.User.name, x.session_id)
+                .join(m.User, m.User.id == x.user_id)
+                .where(x.collection_id == collection_id)
+                .order_by(m.User.name)
+            ).all()
+        by_member: dict[str, builtins.list[Annotation]] = {}
+        for row in own:
+            by_member[row.id] = [Annotation(row.id, row.user_id, row.name, row.session_id, further=False)]
+        for row in further:
+            if row.member_id in by_member:
+                by_member[row.member_id].append(
+                    Annotation(row.member_id, row.user_id, row.name, row.session_id, further=True)
+                )
+        return [annotation for annotations in by_member.values() for annotation in annotations]
+
+    def add_annotation(
+        self, collection_id: str, member_id: str, user_id: int, session: SessionRecord, conn: Connection | None = None
+    ) -> None:
+        """Record ``session`` (stored here, in the same transaction) as ``user_id``'s further annotation of the
+        member; 409 when they annotate it already."""
+        x = m.MemberAnnotation
+        with self.db.joined(conn) as tx:
+            mine = (x.collection_id == collection_id) & (x.member_id == member_id) & (x.user_id == user_id)
+            if tx.execute(select(x.session_id).where(mine)).first() is not None:
+                raise Conflict(f"that user annotates member {member_id} of collection {collection_id} already")
+            self.sessions.create(session, tx)
+            tx.execute(
+                insert(x).values(
+                    collection_id=collection_id,
+                    member_id=member_id,
+                    user_id=user_id,
+                    session_id=session.id,
+                    created_at=now(),
+                )
+            )
+
+    def annotation_standing(self, session_id: str, viewer: Viewer) -> Standing | None:
+        """Where ``viewer`` stands in the collection the session is a further annotation in (its annotator as the
+        assignee), None: it is none."""
+        x = m.MemberAnnotation
+        query = (
+            _standing_query(viewer)
+            .add_columns(x.user_id.label("assignee"))
+            .join(x, x.collection_id == m.Collection.id)
+            .where(x.session_id == session_id)
+        )
+        with self.db.read() as conn:
+            row = conn.execute(query).first()
+        return None if row is None else Standing(**{**row._asdict(), "assigning": True})
+
+    def _annotation_sessions(
+        self, tx: Connection, collection_id: str, member_id: str | None = None
+    ) -> builtins.list[str]:
+        x = m.MemberAnnotation
+        where = [x.collection_id == collection_id] + ([x.member_id == member_id] if member_id else [])
+        return list(tx.execute(select(x.session_id).where(*where)).scalars())
+
     # -- what the file store offered, for a swap ------------------------------------------------------------
     lock_timeout_s = 30.0
     """How long a writer waits for another (the database's busy timeout; there are no record locks)."""
@@ -423,17 +603,22 @@ class Collections:
         the session, whose results the caller deletes."""
         with self.db.joined(conn) as tx:
             record = _read(tx, collection_id)
+            jobs: builtins.list[str] = []
+            for further in self._annotation_sessions(tx, collection_id, member_id):
+                jobs += self.sessions.delete(further, tx)
             session_id = record.member(member_id).session
-            return self.sessions.delete(session_id, tx)  # (moves the collection to its next revision)
+            return jobs + self.sessions.delete(session_id, tx)  # (moves the collection to its next revision)
 
     def delete(self, collection_id: str, conn: Connection | None = None) -> builtins.list[str]:
-        """Delete the collection and its member sessions; returns the refinement jobs run from those."""
+        """Delete the collection, its member sessions and its further annotations' sessions; returns the refinement
+        jobs run from those."""
         with self.db.joined(conn) as tx:
             if _revision(tx, collection_id) is None:
                 raise UnknownCollection(collection_id)
             sessions = list(
                 tx.execute(select(m.Member.session_id).where(m.Member.collection_id == collection_id)).scalars()
             )
+            sessions += self._annotation_sessions(tx, collection_id)
             tx.execute(delete(m.Collection).where(m.Collection.id == collection_id))
             jobs: builtins.list[str] = []
             for session_id in sessions:

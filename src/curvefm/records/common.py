@@ -19,6 +19,8 @@ from curvefm.errors import InvalidInput
 
 T = TypeVar("T")
 MAX_PAGE = 500
+MAX_OFFSET = 2**63 - 1
+"""The largest offset a page may start at: what the databases' 64-bit integers hold (beyond: 422, not an overflow)."""
 DEFAULT_PAGE = 50
 _RECORD_ID = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
 
@@ -64,8 +66,8 @@ def visible(
 def check_page(limit: int, offset: int) -> None:
     if not isinstance(limit, int) or not 1 <= limit <= MAX_PAGE:
         raise InvalidInput(f"limit must be 1 to {MAX_PAGE}, got {limit!r}")
-    if not isinstance(offset, int) or offset < 0:
-        raise InvalidInput(f"offset must be 0 or more, got {offset!r}")
+    if not isinstance(offset, int) or not 0 <= offset <= MAX_OFFSET:
+        raise InvalidInput(f"offset must be 0 to {MAX_OFFSET}, got {offset!r}")
 
 
 def encode_cursor(updated_at: float, record_id: str) -> str:

@@ -359,3 +359,33 @@ class WebhookDelivery(Base):
     last_status: Mapped[int | None] = mapped_column(Integer)
     last_error: Mapped[str | None] = mapped_column(Text)
     __table_args__ = (Index("ix_webhook_deliveries_due", "state", "next_attempt_at"),)
+
+
+class MemberReview(Base):
+    """Where a member stands in review: ``submitted``, ``changes_requested`` or ``accepted`` (no row: ``open``),
+    who submitted it and when, who reviewed it last, when, and their comment. Keyed by the member's id as
+    :class:`Assignment` is (member ids are never reused). Every transition is in the audit log as well."""
+
+    __tablename__ = "member_reviews"
+    collection_id: Mapped[str] = mapped_column(ForeignKey("collections.id", ondelete="CASCADE"), primary_key=True)
+    member_id: Mapped[str] = mapped_column(String(16), primary_key=True)
+    state: Mapped[str] = mapped_column(String(20))
+    submitted_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
+    submitted_at: Mapped[float | None] = mapped_column(Double)
+    reviewed_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
+    reviewed_at: Mapped[float | None] = mapped_column(Double)
+    comment: Mapped[str] = mapped_column(Text, default="")
+
+
+class MemberAnnotation(Base):
+    """A further, independent annotation of a member by another annotator (double annotation): a session of its
+    own (template -> the member's shape) whose curves that annotator answers; the member's own session is its
+    assignee's. Deleting the session removes the row; the collection's and the member's deletion delete the
+    session."""
+
+    __tablename__ = "member_annotations"
+    collection_id: Mapped[str] = mapped_column(ForeignKey("collections.id", ondelete="CASCADE"), primary_key=True)
+    member_id: Mapped[str] = mapped_column(String(16), primary_key=True)
+    user_id: Mapped[int] = mapped_column(ForeignKey("users.id", ondelete="CASCADE"), primary_key=True, index=True)
+    session_id: Mapped[str] = mapped_column(ForeignKey("sessions.id", ondelete="CASCADE"), unique=True)
+    created_at: Mapped[float] = mapped_column(Double)

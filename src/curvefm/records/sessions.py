@@ -157,8 +157,9 @@ class Sessions:
         in_collection: bool | None = None,
     ) -> Page[SessionSummary]:
         """The sessions ``viewer`` may see (of ``owner``, using ``shape``, whose name or shape names contain
-        ``query`` whatever the case, members of a collection or not as ``in_collection`` says), newest change
-        first: ``limit`` of them from ``offset``, or after ``cursor`` (the ``next_cursor`` of the page before)."""
+        ``query`` whatever the case, of a collection or not as ``in_collection`` says: a member's, or a further
+        annotation of one), newest change first: ``limit`` of them from ``offset``, or after ``cursor`` (the
+        ``next_cursor`` of the page before)."""
         check_page(limit, offset)
         where = [visible(m.Session.owner_id, m.Session.sharing, viewer)]
         if owner is not None:
@@ -170,7 +171,7 @@ class Sessions:
             in_name = _contains(m.Session.name, query)
             where.append(or_(in_name, m.Session.source.in_(named), m.Session.target.in_(named)))
         if in_collection is not None:
-            members = select(m.Member.session_id)
+            members = select(m.Member.session_id).union_all(select(m.MemberAnnotation.session_id))
             where.append(m.Session.id.in_(members) if in_collection else m.Session.id.not_in(members))
         # per row of the page, subqueries (not joins): the count and the page's sort stay on the sessions table
         n_curves = select(func.count()).where(m.Curve.session_id == m.Session.id).correlate(m.Session).scalar_subquery()

@@ -20,6 +20,7 @@ from curvefm.service import (
     routes_collections,
     routes_events,
     routes_jobs,
+    routes_reviews,
     routes_sessions,
     routes_shapes,
     routes_webhooks,
@@ -153,6 +154,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         routes_events,
         routes_collections,
         routes_webhooks,
+        routes_reviews,
         routes_jobs,
         routes_audit,
     )

@@ -16,6 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from curvefm.collection import CollectionRecord, MemberStatus
 from curvefm.fmap import DEFAULT_K
 from curvefm.morphometrics import SnappedPoint
+from curvefm.records.collections import ReviewState
 from curvefm.service.carried import CarriedFunction
 from curvefm.session import (
     EXAMPLE_PATHS,
@@ -213,6 +214,12 @@ class SpreadRequest(BaseModel):
     members: list[str] | None = Field(None, description="the members to assign (default: those assigned to no one)")
 
 
+REVIEW_HELP = (
+    "open (never submitted), submitted (waiting for a reviewer; its curves are locked), changes_requested (sent "
+    "back with a comment), accepted (its curves are locked)"
+)
+
+
 class MemberProgress(BaseModel):
     member: str
     shape_name: str
@@ -221,6 +228,76 @@ class MemberProgress(BaseModel):
     curves_done: int = Field(description="template curves answered on the member")
     curves_total: int
     done: bool = Field(description="every template curve answered")
+    review: ReviewState = Field("open", description=REVIEW_HELP)
+
+
+class MemberReview(BaseModel):
+    member: str
+    state: ReviewState = Field(description=REVIEW_HELP)
+    submitted_by: str | None = Field(None, description="who submitted it last (null: never, or a removed user)")
+    submitted_at: float | None = Field(None, description="when, UNIX seconds")
+    reviewed_by: str | None = Field(None, description="who accepted it or requested changes last")
+    reviewed_at: float | None = Field(None, description="when, UNIX seconds")
+    comment: str = Field("", description="the reviewer's comment with their last decision")
+
+
+class ReviewRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    decision: Literal["accept", "request_changes"] = Field(
+        description="accept a submitted member, or send a submitted or accepted member back to its annotator"
+    )
+    comment: str = Field("", max_length=2000, description="what to change (shown to the annotator)")
+
+
+class AnnotationRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    user: str = Field(description="the annotator who annotates the member once more, independently")
+
+
+class AnnotationView(BaseModel):
+    member: str
+    annotator: str | None = Field(description="whose annotation (the member's own session: its assignee)")
+    session: str = Field(description="the session the annotator answers the template curves in")
+    further: bool = Field(description="a further annotation, not the member's own session")
+
+
+class CurveEndsAgreement(BaseModel):
+    template_curve: str
+    start: float | None = Field(
+        description="geodesic distance between the two answers' starts, by sqrt(area) (null: on different "
+        "components of the member)"
+    )
+    end: float | None = Field(description="between their ends, by sqrt(area)")
+
+
+class PairAgreementView(BaseModel):
+    a: str | None = Field(description="the first annotator")
+    b: str | None = Field(description="the second annotator")
+    session_a: str
+    session_b: str
+    map_distance: float | None = Field(
+        description="mean geodesic distance on the member between the two maps' images of the compared template "
+        "vertices, by sqrt(area of the member), over those on one component (null: none)"
+    )
+    unreachable: int = Field(description="compared template vertices whose two images lie on different components")
+    endpoint_distance: float | None = Field(description="mean of the curves' start and end distances")
+    curves: list[CurveEndsAgreement] = Field(description="per template curve both answered")
+
+
+class MemberAgreement(BaseModel):
+    member: str
+    pairs: list[PairAgreementView] = Field(description="every pair of the member's annotations with curves")
+    map_distance: float | None = Field(description="the mean over its pairs (null: no distance to compare)")
+    flagged: bool = Field(description="map_distance above the threshold: review it")
+
+
+class AgreementReport(BaseModel):
+    members: list[MemberAgreement] = Field(description="the members annotated twice or more, both with curves")
+    map_distance: float | None = Field(description="the mean over those members (null: none)")
+    endpoint_distance: float | None = Field(description="the mean endpoint distance over their pairs")
+    threshold: float = Field(description="CURVEFM_AGREEMENT_THRESHOLD, units of sqrt(area)")
+    points: int = Field(description="template vertices compared (CURVEFM_AGREEMENT_POINTS at most)")
+    flagged: list[str] = Field(description="the members above the threshold")
 
 
 class AnnotatorProgress(BaseModel):
@@ -275,6 +352,7 @@ class CollectionView(BaseModel):
         "assignment), own (delete, owners)",
     )
     assignees: dict[str, str] = Field({}, description="member id -> the name of the annotator it is assigned to")
+    reviews: dict[str, MemberReview] = Field({}, description="member id -> where it stands in review")
 
 
 class CollectionSummary(BaseModel):
@@ -318,6 +396,7 @@ class RunRequest(RefineRequest):
     only_ready: bool = Field(
         False, description="run only those of the members that have curves (else 409 names the ones without)"
     )
+    only_accepted: bool = Field(False, description="run only those of the members a reviewer accepted")
 
 
 class MemberMapsResponse(BaseModel):

@@ -14,7 +14,9 @@
   members and starts runs); a user holds the union of their role's and the sharing's, so the higher of the two.
   A collection they hold neither for answers 404. Member sessions are shared as their collection is, and a role
   in the collection reaches its member sessions (read; edit for those who may answer; share and delete for its
-  owners).
+  owners), and a further annotation's session (double annotation) as if its member were assigned to its
+  annotator. ``review`` accepts submitted members or sends them back; a member submitted or accepted is locked:
+  edits of its session (curves, name) answer 409 for everyone, admins too, until a reviewer requests changes.
 * Shapes and their bases are a shared library: every user sees and uses them; only an uploader deletes them.
 * Jobs: a basis job is visible to every user (its shape is, and a second request for the same basis joins
   it); a refinement job to its owner and, once finished, to whoever may read its session. Only the owner
@@ -84,9 +86,23 @@ def session_for(services: Services, user: User, session_id: str, need: Need) -> 
     """The record, when ``user`` may ``need`` it: 404 for a session they may not see, 403 for one they see
     but may not change so."""
     record = services.sessions.record(session_id)
-    if user.admin or record.owner == user.name:
-        return record
-    return _checked(record, user, need, "session", UnknownSession, _member_session_needs(services, user, session_id))
+    if not (user.admin or record.owner == user.name):
+        _checked(record, user, need, "session", UnknownSession, _member_session_needs(services, user, session_id))
+    if need in ("edit", "answer"):
+        refuse_locked(services, session_id)
+    return record
+
+
+def refuse_locked(services: Services, session_id: str) -> None:
+    """409 when the session is a member's that is submitted or accepted: its curves and name wait for a reviewer
+    (who sends it back with changes requested to reopen it)."""
+    locked = services.collections.records.locked_member(session_id)
+    if locked is not None:
+        collection_id, member_id, state = locked
+        raise Conflict(
+            f"member {member_id} of collection {collection_id} is {state}: its curves may not change until a "
+            "reviewer requests changes (POST .../review)"
+        )
 
 
 def collection_for(services: Services, user: User, collection_id: str, need: Need) -> CollectionRecord:
@@ -122,6 +138,16 @@ def capabilities(user: User, standing: Standing | None) -> frozenset[Need]:
     return ROLE_CAPABILITIES.get(standing.role or "", frozenset()) | SHARING_CAPABILITIES[standing.sharing]
 
 
+def check_annotator(services: Services, collection_id: str, target: User) -> None:
+    """409 unless ``target`` may answer in the collection (an annotator, a manager, an owner)."""
+    standing = services.collections.records.standing(collection_id, viewer(target))
+    if "answer" not in capabilities(target, standing):
+        raise Conflict(
+            f"user '{target.name}' may not answer in collection {collection_id}; grant them the annotator role "
+            "first (PUT .../roles/{user})"
+        )
+
+
 def may_answer(user: User, standing: Standing, held: frozenset[Need]) -> bool:
     """Whether ``user`` may answer the member ``standing`` was read for: anyone holding ``answer_any``, an
     annotator while no member is assigned or when it is assigned to them."""
@@ -132,7 +158,8 @@ def may_answer(user: User, standing: Standing, held: frozenset[Need]) -> bool:
 
 def _member_session_needs(services: Services, user: User, session_id: str) -> frozenset[Need]:
     """What a role in the collection of a member session lets ``user`` do to the session."""
-    standing = services.collections.records.member_standing(session_id, viewer(user))
+    records, asking = services.collections.records, viewer(user)
+    standing = records.member_standing(session_id, asking) or records.annotation_standing(session_id, asking)
     if standing is None:
         return frozenset()
     held = capabilities(user, standing)

@@ -9,7 +9,7 @@ from fastapi import APIRouter, Query, Response
 from pydantic import BeforeValidator
 
 from curvefm.errors import Forbidden
-from curvefm.records.common import MAX_PAGE
+from curvefm.records.common import MAX_OFFSET, MAX_PAGE
 from curvefm.service.auth import CurrentUser
 from curvefm.service.deps import ServicesDep
 from curvefm.service.errors import error_responses
@@ -33,7 +33,9 @@ def read_audit(
     caller: CurrentUser,
     services: ServicesDep,
     limit: Annotated[int, Query(ge=1, le=MAX_PAGE, description="the last this many events")] = 100,
-    offset: Annotated[int, Query(ge=0, description="skip this many of the newest (the page before)")] = 0,
+    offset: Annotated[
+        int, Query(ge=0, le=MAX_OFFSET, description="skip this many of the newest (the page before)")
+    ] = 0,
     since: Annotated[IsoTime | None, Query(description="only events at or after this ISO 8601 time")] = None,
     user: Annotated[str | None, Query(max_length=64, description="only events of this user")] = None,
 ) -> list[dict]:

@@ -40,7 +40,8 @@ from curvefm.morphometrics import (
     run_mapped,
     template_pseudo,
 )
-from curvefm.records.common import MAX_PAGE
+from curvefm.records.collections import ReviewState
+from curvefm.records.common import MAX_OFFSET, MAX_PAGE
 from curvefm.service.auth import AUTHENTICATED, CurrentUser
 from curvefm.service.deps import (
     JOB_ERRORS,
@@ -75,7 +76,16 @@ from curvefm.service.models import (
 )
 from curvefm.service.openapi import SchemaRoute
 from curvefm.service.owned import COLLECTIONS, LIMIT_HELP, OFFSET_HELP, TOTAL_HEADER, TOTAL_SCHEMA, discard_job, paged
-from curvefm.service.permissions import REFUSALS, capabilities, check_collection, collection_for, session_for
+from curvefm.service.permissions import (
+    REFUSALS,
+    capabilities,
+    check_annotator,
+    check_collection,
+    collection_for,
+    refuse_locked,
+    session_for,
+)
+from curvefm.service.routes_reviews import review_view
 from curvefm.service.routes_sessions import IfMatch, converter_params, expected_revision
 from curvefm.service.routes_shapes import store_upload
 from curvefm.session import BasisNeed, SessionRecord, basis_available
@@ -143,7 +153,7 @@ def list_collections(
     services: ServicesDep,
     user: CurrentUser,
     limit: Annotated[int | None, Query(ge=1, le=MAX_PAGE, description=LIMIT_HELP)] = None,
-    offset: Annotated[int, Query(ge=0, description=OFFSET_HELP)] = 0,
+    offset: Annotated[int, Query(ge=0, le=MAX_OFFSET, description=OFFSET_HELP)] = 0,
 ) -> list[CollectionSummary]:
     """The collections you may see (yours, those shared with the lab, and for admins all), the most recently
     changed first: ``limit`` of them from ``offset`` (without ``limit``: all from ``offset``). The
@@ -265,18 +275,29 @@ def answer_template_curve(
     services: ServicesDep,
     user: CurrentUser,
     if_match: IfMatch = None,
+    annotator: Annotated[
+        str | None,
+        Query(max_length=64, description="answer in this annotator's further annotation of the member instead"),
+    ] = None,
 ) -> CurveEdit:
     """Answer a template curve on a member: ``target`` (clicked on the member) becomes a curve of the member's
     session whose source is the template curve's path; its maps update as in a session. Answering a template
     curve again replaces the earlier answer. Extra curves (answering no template curve) go through
-    ``POST /sessions/{session}/curves``; 409 while the member's basis is not ready. ``If-Match`` names the member
-    session's revision the answer is based on, as for a session's edits."""
-    check_collection(services, user, collection_id, "answer", member_id)
+    ``POST /sessions/{session}/curves``; 409 while the member's basis is not ready, or while it is submitted or
+    accepted in review. ``If-Match`` names the member session's revision the answer is based on, as for a
+    session's edits. ``annotator``: the further annotation that annotator makes of the member (its annotator, a
+    manager, an owner or an admin)."""
+    if annotator is None:
+        check_collection(services, user, collection_id, "answer", member_id)
+        session_id = services.collections.record(collection_id).member(member_id).session
+        refuse_locked(services, session_id)
+    else:
+        session_id = _further_annotation(services, user, collection_id, member_id, annotator)
     options = body.model_dump(exclude={"template_curve", "target"})
     watched = services.webhooks.subscribed(collection_id, WebhookEvent.MEMBER_COMPLETED)
     was_done = watched and _member_done(services, collection_id, member_id)[0]
     curve, summary = services.collections.answer(
-        collection_id, member_id, body.template_curve, body.target, expected_revision(if_match), **options
+        collection_id, member_id, body.template_curve, body.target, expected_revision(if_match), session_id, **options
     )
     if watched and not was_done:
         done, session_id = _member_done(services, collection_id, member_id)
@@ -291,6 +312,20 @@ def _member_done(services: Services, collection_id: str, member_id: str) -> tupl
     record = services.collections.record(collection_id)
     session = services.sessions.record(record.member(member_id).session)
     return _progress(record, member_id, session, None, "").done, session.id
+
+
+def _further_annotation(services: Services, user: User, collection_id: str, member_id: str, annotator: str) -> str:
+    """The session of ``annotator``'s further annotation of the member, when ``user`` may answer in it (404: no
+    such annotation)."""
+    held = check_collection(services, user, collection_id, "answer")
+    annotations = services.collections.records.annotations(collection_id)
+    mine = [a for a in annotations if a.member_id == member_id and a.further and a.user == annotator]
+    if not mine:
+        services.collections.record(collection_id).member(member_id)  # an unknown member is named as such
+        raise NotFound(f"'{shown(annotator)}' makes no further annotation of member {member_id}")
+    if "answer_any" not in held and annotator != user.name:
+        raise Forbidden(f"collection {collection_id}: {REFUSALS['answer_any']}")
+    return mine[0].session_id
 
 
 @router.get("/collections/{collection_id}/roles", response_model=list[RoleGrant], responses=ERRORS)
@@ -403,14 +438,17 @@ def get_assignments(collection_id: str, services: ServicesDep, user: CurrentUser
 def my_work(services: ServicesDep, user: CurrentUser) -> list[WorkItem]:
     """The members assigned to you in every collection you may still read: those not done first (the first is
     what is next), the most recently changed collection first, members in order."""
-    items = []
+    items, states = [], ReviewStates(services)
     for work in services.collections.records.work(user.id):
         if "read" not in capabilities(user, services.collections.records.standing(work.collection_id, viewer(user))):
             continue
         session = services.sessions.record(work.session_id)
         record = services.collections.record(work.collection_id)
         names = services.shapes.names([work.shape])
-        progress = _progress(record, work.member_id, session, user.name, names.get(work.shape) or work.shape[:12])
+        shape_name = names.get(work.shape) or work.shape[:12]
+        progress = _progress(
+            record, work.member_id, session, user.name, shape_name, states.of(record.id, work.member_id)
+        )
         items.append(WorkItem(collection=record.id, collection_name=record.name, **progress.model_dump()))
     return sorted(items, key=lambda item: item.done)
 
@@ -420,12 +458,7 @@ def _annotator(services: Services, collection_id: str, name: str) -> User:
     target = services.users.get(name)
     if target is None:
         raise NotFound(f"no user named '{shown(name)}'")
-    standing = services.collections.records.standing(collection_id, viewer(target))
-    if "answer" not in capabilities(target, standing):
-        raise Conflict(
-            f"user '{target.name}' may not answer in collection {collection_id}; grant them the annotator role "
-            "first (PUT .../roles/{user})"
-        )
+    check_annotator(services, collection_id, target)
     return target
 
 
@@ -433,6 +466,7 @@ def _assignments(services: Services, collection_id: str) -> Assignments:
     record = services.collections.record(collection_id)
     assigned = services.collections.records.assignees(collection_id)
     names = services.shapes.names([m.shape for m in record.members])
+    states = ReviewStates(services)
     members = [
         _progress(
             record,
@@ -440,6 +474,7 @@ def _assignments(services: Services, collection_id: str) -> Assignments:
             services.sessions.record(m.session),
             assigned[m.id][1] if m.id in assigned else None,
             names.get(m.shape) or m.shape[:12],
+            states.of(collection_id, m.id),
         )
         for m in record.members
     ]
@@ -459,8 +494,26 @@ def _assignments(services: Services, collection_id: str) -> Assignments:
     return Assignments(members=members, annotators=annotators)
 
 
+class ReviewStates:
+    """Members' review states, read once per collection asked about."""
+
+    def __init__(self, services: Services):
+        self.records = services.collections.records
+        self.read: dict[str, dict[str, ReviewState]] = {}
+
+    def of(self, collection_id: str, member_id: str) -> ReviewState:
+        if collection_id not in self.read:
+            self.read[collection_id] = {m: r.state for m, r in self.records.reviews(collection_id).items()}
+        return self.read[collection_id].get(member_id, "open")
+
+
 def _progress(
-    record: CollectionRecord, member_id: str, session: SessionRecord, assignee: str | None, shape_name: str
+    record: CollectionRecord,
+    member_id: str,
+    session: SessionRecord,
+    assignee: str | None,
+    shape_name: str,
+    review: ReviewState = "open",
 ) -> MemberProgress:
     templates = {c.id for c in record.curves}
     answered = len({c.spec.template_curve for c in session.curves} & templates)
@@ -472,12 +525,14 @@ def _progress(
         curves_done=answered,
         curves_total=len(templates),
         done=bool(templates) and answered == len(templates),
+        review=review,
     )
 
 
 @router.post("/collections/{collection_id}/runs", status_code=202, response_model=RunStatus, responses=RUN_ERRORS)
 def start_run(collection_id: str, body: RunRequest, services: ServicesDep, user: CurrentUser) -> RunStatus:
-    """Refine every member (or ``members``; with ``only_ready``, those of them that have curves) as one job each
+    """Refine every member (or ``members``; with ``only_ready``, those of them that have curves; with
+    ``only_accepted``, those of them a reviewer accepted: 409 when none is) as one job each
     on the workers, with one converter and parameters (as ``POST /sessions/{id}/refine``); 409 names the members
     without curves unless ``only_ready``. A run is admitted once by your concurrent-jobs quota (429 at it); its
     jobs then count towards it until they end. Members left out keep their previous run's jobs. A run is recorded
@@ -490,10 +545,21 @@ def start_run(collection_id: str, body: RunRequest, services: ServicesDep, user:
     def submit(session) -> str:
         return submit_refine(services, session, body.converter, params, user.name, next(admissions)).id
 
-    run = services.collections.start_run(collection_id, body.converter, params, submit, body.members, body.only_ready)
+    members = _accepted(services, record, body.members) if body.only_accepted else body.members
+    run = services.collections.start_run(collection_id, body.converter, params, submit, members, body.only_ready)
     services.webhooks.run_recorded(collection_id, run.id)
     services.audit.record(user.name, "collection.run", collection_id, {"run": run.id, "jobs": len(run.members)})
     return run_status(run, lambda job_id: job_view(services, job_id))
+
+
+def _accepted(services: Services, record: CollectionRecord, members: list[str] | None) -> list[str]:
+    """The members (of ``members``, by default all) a reviewer accepted; 409 when none is."""
+    chosen = [record.member(m).id for m in dict.fromkeys(members)] if members else [m.id for m in record.members]
+    states = ReviewStates(services)
+    accepted = [m for m in chosen if states.of(record.id, m) == "accepted"]
+    if not accepted:
+        raise Conflict(f"no member of collection {record.id} asked for is accepted yet; a reviewer accepts them")
+    return accepted
 
 
 @router.get("/collections/{collection_id}/runs/{run_id}", response_model=RunStatus, responses=ERRORS)
@@ -708,7 +774,8 @@ def _view(services: Services, collection_id: str, user: User) -> CollectionView:
     ]
     may = capabilities(user, services.collections.records.standing(collection_id, viewer(user)))
     assignees = {member: name for member, (_, name) in services.collections.records.assignees(collection_id).items()}
-    return CollectionView(collection=record, members=members, may=sorted(may), assignees=assignees)
+    reviews = {member: review_view(r) for member, r in services.collections.records.reviews(collection_id).items()}
+    return CollectionView(collection=record, members=members, may=sorted(may), assignees=assignees, reviews=reviews)
 
 
 def _need(record: CollectionRecord, shape: str) -> BasisNeed:

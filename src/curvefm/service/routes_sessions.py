@@ -33,7 +33,7 @@ from curvefm.morphometrics import (
     refined_configuration,
     seed_curves,
 )
-from curvefm.records.common import MAX_PAGE, Page
+from curvefm.records.common import MAX_OFFSET, MAX_PAGE, Page
 from curvefm.records.sessions import SessionSummary as RecordSummary
 from curvefm.service.auth import AUTHENTICATED, CurrentUser
 from curvefm.service.carried import CarriedFunction, CarriedKind, carried
@@ -134,7 +134,7 @@ def list_sessions(
     services: ServicesDep,
     user: CurrentUser,
     limit: Annotated[int | None, Query(ge=1, le=MAX_PAGE, description=LIMIT_HELP)] = None,
-    offset: Annotated[int, Query(ge=0, description=OFFSET_HELP)] = 0,
+    offset: Annotated[int, Query(ge=0, le=MAX_OFFSET, description=OFFSET_HELP)] = 0,
     q: Annotated[
         str | None,
         Query(max_length=NAME_LENGTH, description="only sessions whose name or shape names contain this (any case)"),
@@ -665,7 +665,7 @@ def list_refinements(
     services: ServicesDep,
     user: CurrentUser,
     limit: Annotated[int | None, Query(ge=1, le=MAX_PAGE, description=LIMIT_HELP)] = None,
-    offset: Annotated[int, Query(ge=0, description=OFFSET_HELP)] = 0,
+    offset: Annotated[int, Query(ge=0, le=MAX_OFFSET, description=OFFSET_HELP)] = 0,
 ) -> list[JobInfoModel]:
     """The refinement jobs run from the session that you may see (yours, and others' finished ones), oldest first:
     ``limit`` of them from ``offset`` (without ``limit``: all from ``offset``); ``X-Total-Count`` says how many

@@ -19,7 +19,7 @@ from curvefm.access import User
 from curvefm.cache import LRU
 from curvefm.errors import InvalidInput, shown
 from curvefm.geometry import SUPPORTED_FORMATS, DisplayMesh, Mesh, load_mesh, texture_coordinates
-from curvefm.records.common import MAX_PAGE
+from curvefm.records.common import MAX_OFFSET, MAX_PAGE
 from curvefm.service.auth import AUTHENTICATED, CurrentUser
 from curvefm.service.deps import (
     JOB_ERRORS,
@@ -123,7 +123,7 @@ def list_shapes(
     response: Response,
     services: ServicesDep,
     limit: Annotated[int | None, Query(ge=1, le=MAX_PAGE, description=LIMIT_HELP)] = None,
-    offset: Annotated[int, Query(ge=0, description=OFFSET_HELP)] = 0,
+    offset: Annotated[int, Query(ge=0, le=MAX_OFFSET, description=OFFSET_HELP)] = 0,
 ) -> list[ShapeInfo]:
     """The stored shapes (every user may see them all) by name, then upload time (the newest first): ``limit`` of
     them from ``offset`` (without ``limit``: all from ``offset``, after recording any mesh the command line stored

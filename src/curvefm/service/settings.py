@@ -162,6 +162,16 @@ class Settings(QueueSettings):
         DEFAULT_LOCK_TIMEOUT_S,
         description="Seconds a request waits for a session that another request or process is editing before a 503.",
     )
+    agreement_points: Positive = Field(
+        1000,
+        description="At how many template vertices (spread by farthest-point sampling) two annotators' maps of a "
+        "member are compared (GET /collections/{id}/agreement); the cost grows with it.",
+    )
+    agreement_threshold: NonNegative = Field(
+        0.05,
+        description="The mean geodesic distance between two annotators' maps of a member (units of its "
+        "sqrt(area)) above which the agreement report flags the member for review.",
+    )
     markup_snap_tolerance: NonNegative = Field(
         DEFAULT_SNAP_TOLERANCE,
         description="How far a point of imported Slicer markups (POST /sessions/{id}/markups) may be from the "

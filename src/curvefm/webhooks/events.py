@@ -14,8 +14,8 @@ class WebhookEvent(StrEnum):
       process that records the last job's end, once per end of the run;
     * ``member.added`` / ``member.removed``: a member joined or left the collection;
     * ``member.completed``: a member's template curves are all answered;
-    * ``member.submitted`` / ``member.accepted``: a member was submitted for review / accepted by a reviewer;
-      fired by the review stage (its routes call ``Webhooks.notify``).
+    * ``member.submitted`` / ``member.accepted``: a member was submitted for review / accepted by a reviewer,
+      announced in the transaction of the move (``curvefm.service.routes_reviews``).
     """
 
     RUN_ENDED = "run.ended"

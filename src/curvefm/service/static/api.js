@@ -193,6 +193,11 @@ export const api = {
       headers: basedOn(revision),
     }),
   removeMember: (id, member) => request("DELETE", `/collections/${enc(id)}/members/${enc(member)}`, { as: "none" }),
+  /** Submit a member for review (every template curve answered); resolves to its review. */
+  submitMember: (id, member) => request("POST", `/collections/${enc(id)}/members/${enc(member)}/submit`),
+  /** decision: "accept" or "request_changes" (with a comment for the annotator); resolves to the member's review. */
+  reviewMember: (id, member, decision, comment = "") =>
+    request("POST", `/collections/${enc(id)}/members/${enc(member)}/review`, { json: { decision, comment } }),
   /** A run of the members that have curves (the others keep their previous run's jobs). */
   startRun: (id, converter, params) =>
     request("POST", `/collections/${enc(id)}/runs`, { json: { converter, params, only_ready: true } }),

@@ -180,6 +180,30 @@ export async function removeMember(memberId) {
   }
 }
 
+/** A member's Submit button: submit it for review (its curves are locked until a reviewer decides). */
+export async function submitMember(memberId) {
+  try {
+    await api.submitMember(state.collection.collection.id, memberId);
+    toast(`Member ${memberId} submitted for review.`);
+    await refreshCollection();
+  } catch (error) {
+    report(error, "The member could not be submitted");
+  }
+}
+
+/** Accept / Request changes (asking for the comment the annotator will read). */
+export async function reviewMember(memberId, decision) {
+  const comment = decision === "request_changes" ? window.prompt(`What should change in ${memberId}?`) : "";
+  if (comment === null) return;
+  try {
+    const review = await api.reviewMember(state.collection.collection.id, memberId, decision, comment);
+    toast(`Member ${memberId}: ${review.state.replace("_", " ")}.`);
+    await refreshCollection();
+  } catch (error) {
+    report(error, "The review could not be recorded");
+  }
+}
+
 /** Show a run's progress per member until it ends (or another collection is chosen), then its archive. */
 async function followRun(id, started) {
   const box = $("run-progress");

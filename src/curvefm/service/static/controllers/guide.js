@@ -6,17 +6,24 @@ import { answerOf, clearPending, recordEdit, setCurrentTemplateCurve, state, tem
 import { nextMember, openCollectionsPanel, showCollection } from "../views/collections.js";
 import { showCurves, showPending, showTracing } from "../views/curves.js";
 import { tracerChoice } from "../views/forms.js";
-import { removeMember } from "./collections.js";
+import { removeMember, reviewMember, submitMember } from "./collections.js";
 import { openSession } from "./session.js";
 import { edits, runEdit } from "./edits.js";
 
-/** A click in the member list: its Open button opens the member for guided clicking, its Remove button removes it. */
+const MEMBER_ACTIONS = {
+  open: (memberId) => openMember(memberId),
+  remove: removeMember,
+  submit: submitMember,
+  accept: (memberId) => reviewMember(memberId, "accept"),
+  "request-changes": (memberId) => reviewMember(memberId, "request_changes"),
+};
+
+/** A click in the member list: Open opens the member for guided clicking, Remove removes it, Submit / Accept /
+ * Request changes move it through review. */
 export function clickMemberList(event) {
   const button = event.target.closest("button[data-action]");
   if (!button) return;
-  const memberId = button.closest("li[data-member-id]").dataset.memberId;
-  if (button.dataset.action === "open") openMember(memberId);
-  else removeMember(memberId);
+  MEMBER_ACTIONS[button.dataset.action](button.closest("li[data-member-id]").dataset.memberId);
 }
 
 /** "Next member": open the next member whose template curves are not all answered (see nextMember). */

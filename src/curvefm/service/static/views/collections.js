@@ -86,7 +86,8 @@ export function showMyWork(items) {
       entry.classList.toggle("done", item.done);
       const next = at === 0 && !item.done ? "next: " : "";
       const label = `${next}${item.collection_name || item.collection} · ${item.shape_name} (${item.member})`;
-      entry.textContent = `${label} · ${item.curves_done}/${item.curves_total} curves`;
+      const review = item.review === "open" ? "" : ` · ${REVIEW_LABELS[item.review]}`;
+      entry.textContent = `${label} · ${item.curves_done}/${item.curves_total} curves${review}`;
       return entry;
     }),
   );
@@ -113,8 +114,46 @@ function memberItem(member) {
   remove.dataset.action = "remove";
   remove.disabled = !mayEditCollection();
   remove.title = "remove the member with its session, curves and refinement results (asks first)";
-  item.append(label, open, remove);
+  item.append(label, reviewState(member), open, remove, ...reviewButtons(member));
   return item;
+}
+
+const REVIEW_LABELS = { open: "open", submitted: "submitted", changes_requested: "changes requested", accepted: "accepted" };
+
+/** The member's review state (GET /collections/{id}: reviews), with who and when in its title. */
+function reviewState(member) {
+  const review = state.collection.reviews[member.id] ?? { state: "open" };
+  const element = Object.assign(document.createElement("span"), { className: `review ${review.state}` });
+  element.dataset.review = review.state;
+  const comment = review.state === "changes_requested" && review.comment ? `: “${review.comment}”` : "";
+  element.textContent = ` · ${REVIEW_LABELS[review.state]}${comment}`;
+  const when = (seconds) => new Date(seconds * 1000).toLocaleString();
+  const submitted = review.submitted_by ? `submitted by ${review.submitted_by} ${when(review.submitted_at)}` : "";
+  const reviewed = review.reviewed_by ? `reviewed by ${review.reviewed_by} ${when(review.reviewed_at)}` : "";
+  element.title = [submitted, reviewed].filter(Boolean).join("; ") || "not submitted for review yet";
+  return element;
+}
+
+/** Submit (who may answer it, while open or sent back), Accept and Request changes (who may review). */
+function reviewButtons(member) {
+  const current = state.collection.reviews[member.id]?.state ?? "open";
+  const may = state.collection.may;
+  const button = (action, text, title) => {
+    const element = Object.assign(document.createElement("button"), { type: "button", textContent: text, title });
+    element.dataset.action = action;
+    return element;
+  };
+  const buttons = [];
+  if (["open", "changes_requested"].includes(current) && (may.includes("answer") || may.includes("answer_any"))) {
+    buttons.push(button("submit", "Submit", "submit for review: its curves are locked until a reviewer decides"));
+  }
+  if (may.includes("review") && current === "submitted") {
+    buttons.push(button("accept", "Accept", "accept the member's curves"));
+  }
+  if (may.includes("review") && ["submitted", "accepted"].includes(current)) {
+    buttons.push(button("request-changes", "Request changes…", "send it back to its annotator with a comment"));
+  }
+  return buttons;
 }
 
 /** A member opened for guided clicking: its guide shows. */
