@@ -12,8 +12,9 @@ held out of the endpoints), as ``LoadedPair``'s scorer converts it (nearest neig
 The maps after each click, all from one solver per run (one landmark prior per set of endpoints):
 
 - ``default``: what the ``combined`` method hands out for these curves (its size and energy switches applied);
-- ``prior_size``: the combined energy handed out at the landmark prior's 50 x 50 (the default below 20 curves);
-- ``full_size``: the combined energy handed out whole with the full-size weights (the default from 20 curves);
+- ``prior_size``: the combined energy handed out at the landmark prior's 50 x 50 (the default until the curves'
+  length reaches :func:`curvefm.fmap.combined.full_size_length`; until 2026-11-28, below 20 curves);
+- ``full_size``: the combined energy handed out whole with the full-size weights (the default from then on);
 - ``curves``: the curve energy alone (the fallback of strongly non-isometric pairs).
 
 With ``--figures`` each click also records the intrinsic figures a switch could read (the curves' endpoint
@@ -39,7 +40,7 @@ from curvefm.evaluation import ground_truth_curves
 from curvefm.evaluation.protocol import held_out_landmarks
 from curvefm.evaluation.reproduce.datasets import Pair
 from curvefm.evaluation.reproduce.scoring import LoadedPair
-from curvefm.fmap import DEFAULT_K, FULL_SIZE_CURVES, CombinedMapSolver, CurveMapSolver
+from curvefm.fmap import DEFAULT_K, CombinedMapSolver, CurveMapSolver
 from curvefm.fmap.combined import DEFAULT_COMBINED_ALPHA, curves_alone_suffice, curves_distortion
 from curvefm.geometry import load_mesh
 from curvefm.runtime import limit_blas_threads
@@ -89,11 +90,14 @@ def error(run: Run, C_NM: np.ndarray, rows: np.ndarray) -> float:
     return round(run.loaded.scorer(C_NM, shapes.basis_M, shapes.basis_N, rows).mean_area, 6)
 
 
-def handed_out(solver: CombinedMapSolver, full_size_curves: int) -> np.ndarray:
-    """The solver's ``C_NM`` as it would be handed out with this full-size switch (the prior is kept)."""
+def handed_out(solver: CombinedMapSolver, full_size_curves: int | None) -> np.ndarray:
+    """The solver's ``C_NM`` as it would be handed out with this full-size switch (None: the default rule); the
+    prior is kept."""
     solver.full_size_curves = full_size_curves
     solver._stale.add("NM")  # the weights and size changed, the curves did not
-    return solver.C_NM
+    C_NM = solver.C_NM
+    solver.full_size_curves = None
+    return C_NM
 
 
 def click_errors(run: Run, combined: CombinedMapSolver, curve_energy: CurveMapSolver, curves, figures: bool) -> dict:
@@ -107,7 +111,7 @@ def click_errors(run: Run, combined: CombinedMapSolver, curve_energy: CurveMapSo
     if curves_alone_suffice(shapes.basis_M, shapes.basis_N, curves):
         errors["default"] = errors["curves"]
     else:
-        errors["default"] = errors["full_size" if len(curves) >= FULL_SIZE_CURVES else "prior_size"]
+        errors["default"] = errors["full_size" if combined.full_size else "prior_size"]
     if figures:
         errors |= size_errors(run, combined, rows) | intrinsic_figures(shapes, curves)
     return errors
@@ -144,7 +148,7 @@ def run_clicks(run: Run, count: int, figures: bool) -> dict:
     shapes = run.loaded.shapes
     curves = ground_truth_curves(shapes.mesh_M, shapes.mesh_N, run.loaded.truth, count, run.seed_vertex)
     solver_args = (shapes.mesh_M.vertices, shapes.basis_M, shapes.mesh_N.vertices, shapes.basis_N)
-    combined = CombinedMapSolver(*solver_args, k=DEFAULT_K, interactive=True)
+    combined = CombinedMapSolver(*solver_args, k=DEFAULT_K, interactive=True, source_area=shapes.mesh_M.area)
     curve_energy = CurveMapSolver(*solver_args, k=DEFAULT_K, alpha=DEFAULT_COMBINED_ALPHA, interactive=True)
     clicks = []
     for n, (path_M, path_N) in enumerate(curves, start=1):
