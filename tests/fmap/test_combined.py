@@ -24,6 +24,7 @@ from curvefm.fmap import (
 from curvefm.fmap.combined import (
     ONE_CURVE_PRIOR_FACTOR,
     PRIOR_DELAY_S,
+    full_size_length,
     kernel_coefficients,
     kernel_filters,
     signature_coefficients,
@@ -120,6 +121,20 @@ def test_from_full_size_curves_on_the_map_is_solved_with_the_full_size_weights(s
         assert not solver.full_size and solver.commutativity_weight == WEIGHTS["alpha"]
         expected = dense_least_squares(shapes, curves[:3], **WEIGHTS)
         assert np.allclose(solver.C_MN, expected, atol=1e-7 * np.abs(expected).max())
+
+
+def test_with_the_source_area_the_curves_length_decides_the_whole_map(shapes, paths):
+    # an area that puts full_size_length(K) between the first curve's length and the first two curves' total
+    M = shapes[0]
+    lengths = np.cumsum([np.linalg.norm(np.diff(M.vertices[p], axis=0), axis=1).sum() for p, _ in paths])
+    area = ((lengths[0] + lengths[1]) / 2 / full_size_length(K)) ** 2
+    with solver_on(shapes, prior_weight=0.0, full_size_alpha=0.5, source_area=area) as solver:
+        for count, (path_M, path_N) in enumerate(paths, start=1):
+            solver.add_curve(path_M, path_N)
+            assert solver.curves_length == pytest.approx(lengths[count - 1] / np.sqrt(area))
+            assert solver.full_size == (count >= 2) and solver.commutativity_weight == (0.5 if count >= 2 else 3.0)
+        summary = solver.effective().summary
+        assert summary.startswith(f"combined; {K} x {K} from curves totalling {full_size_length(K):.1f} sqrt(area)")
 
 
 @pytest.mark.parametrize("count", [1, 2])
@@ -289,8 +304,9 @@ def test_the_combined_default_beats_the_curve_energy_and_no17_from_the_same_endp
         for method in ("combined", "curves", "no17"):
             result = match(M, N, curves, store=store, method=method)
             errors[method, count] = score(result, truth)["source_to_target"]["mean_area"]
-            if method == "combined":
-                assert result.fmaps.C_MN.shape == (50, 50)  # the prior's size below 20 curves
+            if method == "combined":  # the prior's size until the curves total full_size_length(120) = 6.2
+                size = 50 if count == 2 else 120  # FAUST's 10 farthest-point curves total 7.5-8.5 sqrt(area)
+                assert result.fmaps.C_MN.shape == (size, size)
     # within 10% of NO17 at 2 curves: near-degenerate eigenvectors differ between eigensolver runs by a few %
     assert errors["combined", 2] <= min(0.034, 0.7 * errors["curves", 2], 1.1 * errors["no17", 2]), errors
     assert errors["combined", 10] <= min(0.025, errors["curves", 10], 1.05 * errors["no17", 10]), errors

@@ -92,7 +92,7 @@ def test_click_curves_delete_refine_and_download(page, demo):
     screenshot(page, "01-demo-loaded")
     record = session(demo)
     stated = demo.client.get(f"/sessions/{DEMO_SESSION}/solve").raise_for_status().json()
-    assert stated["summary"] == "combined; 50 x 50 until 20 curves" and record["k"] == 120
+    assert stated["summary"] == "combined; 50 x 50 until curves totalling 6.2 sqrt(area)" and record["k"] == 120
     shows_in_status_line(page, stated["summary"])
     assert page.get_attribute("#status-line", "title") == f"The map: {stated['reason']}."
     target = demo.client.get(f"/shapes/{record['target']}").json()
@@ -125,7 +125,7 @@ def test_click_curves_delete_refine_and_download(page, demo):
     screenshot(page, "02-three-curves-clicked")
     assert page.locator("#curve-list li").count() == len(known)
     assert "click→texture" in page.text_content("#status-line")
-    shows_in_status_line(page, "combined; 50 x 50 until 20 curves")  # from the edits' answers
+    shows_in_status_line(page, "combined; 50 x 50 until curves totalling 6.2 sqrt(area)")  # from the edits' answers
 
     removed = added[0]
     page.click(f'#curve-list li[data-curve-id="{removed}"] button[data-action="delete"]')

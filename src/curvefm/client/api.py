@@ -360,7 +360,7 @@ class Session:
     def solve(self) -> dict[str, Any]:
         """What the maps are now and why: ``energy`` (combined, or curves where the combined energy gave way),
         ``weights`` as applied (``alpha``, ...), ``size`` (the maps are size x size), ``summary`` (e.g. "combined;
-        50 x 50 until 20 curves") and ``reason``."""
+        50 x 50 until curves totalling 6.2 sqrt(area)") and ``reason``."""
         return self.client.json("GET", f"{self.path}/solve")
 
     def refine(self, converter: str = "nearest-neighbor", **params: Any) -> RefineJob:

@@ -31,10 +31,11 @@ more accurate up to 5 curves. Added as one more term inside the energy it cannot
 solve costs 0.3-1.5 s. So it enters as a prior: ``w_p ||C[:50, :50] - C_NO17||^2``, with ``w_p`` relative to
 the systems' mean diagonal. That adds ``w_p`` to the first 50 diagonal entries of the first 50 column systems and
 ``w_p C_NO17`` to their right-hand sides: the solve keeps its form and its speed, and the prior is computed once
-per set of endpoints (in the background for an interactive solver). Below ``FULL_SIZE_CURVES`` curves the map is
-handed out at the prior's size: its higher frequencies are not determined by so few curves, and converted to
-points they only blurred the map (FAUST, 2 curves: 0.043 at 120 x 120, 0.031 at 50 x 50). Both settings come
-from experiments/combined_prior.py (docs/decisions.md#the-landmark-prior). From ``FULL_SIZE_CURVES`` on, the whole
+per set of endpoints (in the background for an interactive solver). Until the curves are long enough to sample
+the map's every frequency (:func:`full_size_length`; ``FULL_SIZE_CURVES`` curves where the source's area is not
+known) the map is handed out at the prior's size: its higher frequencies are not determined by so few curves, and
+converted to points they only blurred the map (FAUST, 2 curves: 0.043 at 120 x 120, 0.031 at 50 x 50). The prior's
+settings come from experiments/combined_prior.py (docs/decisions.md#the-landmark-prior). From then on, the whole
 map is solved with its own weights, ``FULL_SIZE_ALPHA`` and ``FULL_SIZE_KERNEL_WEIGHT`` (less commutativity, more
 kernels: the curves now determine the higher frequencies; experiments/full_size_weights.py). The solver keeps the
 curve and kernel terms' sums apart, so the weights change with the number of curves at no cost.
@@ -45,7 +46,7 @@ are far from one (TOSCA's horse -> cat) they pull the map away from what the cur
 gives is the curves' endpoints: :func:`landmark_distortion` compares their biharmonic distances on both shapes (from
 the bases, so it costs microseconds per edit), and above ``NON_ISOMETRIC_DISTORTION`` the combined energy gives way
 to the curve energy alone (:func:`curves_alone_suffice`, applied by the ``combined`` method and by a session's
-solver; experiments/isometry_rule.py). From ``FULL_SIZE_CURVES`` on, the combined map is handed out whole, and
+solver; experiments/isometry_rule.py). Once the combined map is handed out whole,
 where the two shapes' spectra differ by more than ``NON_ISOMETRIC_SPECTRA`` (:func:`spectral_mismatch`: isometric
 shapes are isospectral) its frequencies beyond the prior's block are scaled by ``HIGH_FREQUENCY_DAMPING``
 (experiments/high_frequency_damping.py).
@@ -88,8 +89,21 @@ reproduce`'s suite it took FAUST-5k with one curve from 0.0463 to 0.0458 and TOS
 (docs/decisions.md#the-landmark-prior)."""
 # chosen in docs/decisions.md#map-sizes
 FULL_SIZE_CURVES = 20
-"""Below this many curves the map is handed out at the prior's size (50 x 50): its higher frequencies are not
-determined by so few curves and only blur the pointwise map (docs/decisions.md#map-sizes)."""
+"""Where the source's area is not known (a solver built without ``source_area``), the map is handed out at the
+prior's size (50 x 50) below this many curves: its higher frequencies are not determined by so few curves and only
+blur the pointwise map (docs/decisions.md#map-sizes). With the area, :func:`full_size_length` decides instead."""
+
+
+def full_size_length(k: int) -> float:
+    """The curves' total length, on the unit-area source, from which the whole k x k map is handed out: ``sqrt(k /
+    pi)``. Curves of that length spread evenly over the shape lie one wavelength of the k-th eigenfunction apart
+    (Weyl's law on a unit-area surface: ``lam_k ~ 4 pi k``, wavelength ``2 pi / sqrt(lam_k)``), so they sample every
+    frequency of the map. Adding curves one at a time in the UI's order (benchmarks/bench_monotone.py,
+    experiments/monotone_rule.py) it took FAUST at k = 120 to the whole map at 7-8 curves instead of 20, with fewer
+    clicks that made the map worse on the suite and on held-out pairs (docs/decisions.md#map-sizes)."""
+    return float(np.sqrt(k / np.pi))
+
+
 # chosen in docs/decisions.md#full-size-weights
 FULL_SIZE_ALPHA = 30.0
 FULL_SIZE_KERNEL_WEIGHT = 300.0
@@ -253,7 +267,8 @@ class CombinedMapSolver(CurveMapSolver):
         kernel_weight: float = DEFAULT_KERNEL_WEIGHT,
         kernel_points: int = KERNEL_POINTS,
         prior_weight: float = DEFAULT_PRIOR_WEIGHT,
-        full_size_curves: int = FULL_SIZE_CURVES,
+        full_size_curves: int | None = None,
+        source_area: float | None = None,
         full_size_alpha: float = FULL_SIZE_ALPHA,
         full_size_kernel_weight: float = FULL_SIZE_KERNEL_WEIGHT,
         non_isometric_spectra: float = NON_ISOMETRIC_SPECTRA,
@@ -263,7 +278,7 @@ class CombinedMapSolver(CurveMapSolver):
         super().__init__(*args, alpha=alpha, **kwargs)  # type: ignore[misc]  # args: the shapes and bases, k
         self.descriptor_weight, self.kernel_weight = float(descriptor_weight), float(kernel_weight)
         self.kernel_points, self.prior_weight = kernel_points, float(prior_weight)
-        self.full_size_curves = full_size_curves
+        self.full_size_curves, self.source_area = full_size_curves, source_area
         self.full_size_alpha, self.full_size_kernel_weight = float(full_size_alpha), float(full_size_kernel_weight)
         self.damps_high_frequencies = spectral_mismatch(self.basis_M, self.basis_N) > non_isometric_spectra
         self._signatures = self.descriptor_weight * signature_products(self.basis_M, self.basis_N)
@@ -295,9 +310,27 @@ class CombinedMapSolver(CurveMapSolver):
         return np.concatenate([cross_products(X[:s], Y[:s]), cross_products(X[s:], Y[s:])])
 
     @property
+    def length_rule(self) -> bool:
+        """Whether the curves' length decides the map's size (:func:`full_size_length`): with the source's area and
+        no ``full_size_curves`` count asked for (without the area, ``FULL_SIZE_CURVES`` curves decide)."""
+        return self.full_size_curves is None and self.source_area is not None
+
+    @property
+    def curves_length(self) -> float:
+        """The curves' total length on M scaled to unit area (0 without ``source_area``)."""
+        if self.source_area is None:
+            return 0.0
+        steps = (np.diff(self.vertices_M[term.path_M], axis=0) for term in self.curves.values())
+        return sum(float(np.linalg.norm(step, axis=1).sum()) for step in steps) / float(np.sqrt(self.source_area))
+
+    @property
     def full_size(self) -> bool:
-        """Whether there are enough curves (``full_size_curves``) for the whole map and its weights."""
-        return len(self.curves) >= self.full_size_curves
+        """Whether the curves determine the whole map and its weights: their length reaches
+        :func:`full_size_length` (:attr:`length_rule`), or there are ``full_size_curves`` (default
+        ``FULL_SIZE_CURVES``) of them."""
+        if self.length_rule:
+            return self.curves_length >= full_size_length(self.k)
+        return len(self.curves) >= (self.full_size_curves or FULL_SIZE_CURVES)
 
     @property
     def commutativity_weight(self) -> float:
@@ -424,7 +457,8 @@ class CombinedMapSolver(CurveMapSolver):
 
     @property
     def map_size(self) -> int:
-        """The size the maps are handed out at: the prior's block below ``full_size_curves`` curves, else k."""
+        """The size the maps are handed out at: the prior's block until the curves determine the whole map
+        (:attr:`full_size`), then k."""
         return self.prior_size if self.prior_weight > 0 and not self.full_size else self.k
 
     @property
@@ -454,25 +488,34 @@ class CombinedMapSolver(CurveMapSolver):
         summary, reason = self._full_size_reason() if self.full_size else self._prior_size_reason()
         return EffectiveSolve("combined", weights, self.map_size, summary, reason)
 
+    def _switch(self) -> tuple[str, str]:
+        """What hands out the whole map, in a few words, and where the curves stand now."""
+        if self.length_rule:
+            length = f"{full_size_length(self.k):.1f} sqrt(area)"
+            return f"curves totalling {length}", f"{self.curves_length:.1f} now"
+        return f"{self.full_size_curves or FULL_SIZE_CURVES} curves", f"{len(self.curves)} now"
+
     def _prior_size_reason(self) -> tuple[str, str]:
-        k, size, curves, until = self.k, self.map_size, len(self.curves), self.full_size_curves
+        k, size = self.k, self.map_size
         energy = f"the combined energy with alpha {self.alpha:g} and kernels {self.kernel_weight:g}"
         if self.prior_weight <= 0:
             return f"combined; {k} x {k}", f"{energy}, without a landmark prior (the shapes are too big for it)"
         if size == k:
             return f"combined; {k} x {k}", f"{energy}; k = {k} is within the landmark prior's {self.prior_size}"
+        until, now = self._switch()
         return (
-            f"combined; {size} x {size} until {until} curves",
-            f"{energy}; below {until} curves ({curves} now) the map is handed out at the landmark prior's {size} x "
-            f"{size}, not the k = {k} asked: so few curves do not determine its higher frequencies, which only "
-            "blurred the pointwise map",
+            f"combined; {size} x {size} until {until}",
+            f"{energy}; below {until} ({now}) the map is handed out at the landmark prior's {size} x {size}, not the "
+            f"k = {k} asked: so few curves do not determine its higher frequencies, which only blurred the "
+            "pointwise map",
         )
 
     def _full_size_reason(self) -> tuple[str, str]:
-        k, until, alpha = self.k, self.full_size_curves, self.full_size_alpha
-        summary = f"combined; {k} x {k} from {until} curves, alpha {alpha:g}"
+        k, alpha = self.k, self.full_size_alpha
+        until, now = self._switch()
+        summary = f"combined; {k} x {k} from {until}, alpha {alpha:g}"
         reason = (
-            f"the combined energy; from {until} curves ({len(self.curves)} now) the whole k = {k} map, solved with "
+            f"the combined energy; from {until} ({now}) the whole k = {k} map, solved with "
             f"the full-size weights alpha {alpha:g} and kernels {self.full_size_kernel_weight:g} instead of "
             f"alpha {self.alpha:g} and kernels {self.kernel_weight:g}"
         )

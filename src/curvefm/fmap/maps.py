@@ -36,7 +36,8 @@ class FunctionalMaps:
 class EffectiveSolve:
     """What a solver's maps are now, whatever its parameters asked: the ``energy`` they minimise, its ``weights`` as
     applied (``alpha`` and the energy's other terms), the ``size`` they are handed out at (size x size), and why, in a
-    few words (``summary``, e.g. ``combined; 50 x 50 until 20 curves``) and in full (``reason``)."""
+    few words (``summary``, e.g. ``combined; 50 x 50 until curves totalling 6.2 sqrt(area)``) and in full
+    (``reason``)."""
 
     energy: str
     weights: dict[str, float]

@@ -29,7 +29,6 @@ from curvefm.fmap import (
     DEFAULT_SAMPLES,
     EXACT_MAX_K,
     FULL_SIZE_ALPHA,
-    FULL_SIZE_CURVES,
     FULL_SIZE_KERNEL_WEIGHT,
     KERNEL_POINTS,
     NON_ISOMETRIC_DISTORTION,
@@ -80,18 +79,19 @@ class CombinedParams(CurvesParams):
         "relative to the curve systems' mean diagonal, doubled with a single curve; 0: no prior, and the map always "
         "has the basis's size",
     )
-    full_size_curves: int = Field(
-        FULL_SIZE_CURVES,
+    full_size_curves: int | None = Field(
+        None,
         ge=1,
         le=100_000,
-        description="with fewer curves than this (and a prior) the map has the "
-        "prior's size, 50 x 50: its higher frequencies are not determined yet and would blur the pointwise map",
+        description="with fewer curves than this (and a prior) the map has the prior's size, 50 x 50; unset (the "
+        "default): until the curves' total length on the unit-area source reaches sqrt(k / pi), where they sample "
+        "every frequency of the map. Below, its higher frequencies are not determined and would blur the pointwise map",
     )
     full_size_alpha: float = Field(
-        FULL_SIZE_ALPHA, ge=0, description="weight of Laplacian commutativity from full_size_curves curves on"
+        FULL_SIZE_ALPHA, ge=0, description="weight of Laplacian commutativity once the whole map is handed out"
     )
     full_size_kernel_weight: float = Field(
-        FULL_SIZE_KERNEL_WEIGHT, ge=0, description="weight of the wave kernel maps from full_size_curves curves on"
+        FULL_SIZE_KERNEL_WEIGHT, ge=0, description="weight of the wave kernel maps once the whole map is handed out"
     )
     non_isometric_distortion: float = Field(
         NON_ISOMETRIC_DISTORTION,
@@ -103,7 +103,7 @@ class CombinedParams(CurvesParams):
     non_isometric_spectra: float = Field(
         NON_ISOMETRIC_SPECTRA,
         ge=0,
-        description="from full_size_curves curves on, a pair whose Laplace-Beltrami "
+        description="once the whole map is handed out, a pair whose Laplace-Beltrami "
         "spectra differ by more than this (mean |log ratio| of the eigenvalues, shapes scaled to unit area) has its "
         "map's entries outside the prior's block damped: the curves determine those frequencies less well where the "
         "shapes are far from isometric",
@@ -134,6 +134,8 @@ def _solve_curves(
         raise InvalidInput("the curve-based methods need at least one pair of curves")
     k = min(pair.basis_M.k, pair.basis_N.k)
     vertices_and_bases = (pair.mesh_M.vertices, pair.basis_M, pair.mesh_N.vertices, pair.basis_N)
+    if solver_class is CombinedMapSolver:
+        params = params | {"source_area": pair.mesh_M.area}  # for the size switch (full_size_length)
     with solver_class(*vertices_and_bases, k=k, **params) as solver:
         weights = hints.weights or (1.0,) * len(hints.curves)
         solver.add_curves([(pm, pn, w) for (pm, pn), w in zip(hints.curves, weights, strict=True)])

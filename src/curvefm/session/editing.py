@@ -60,7 +60,7 @@ class SolveStatement(BaseModel):
         description="the maps are size x size: the combined energy hands them out at its landmark prior's "
         "min(50, k) below 20 curves, whatever k the session asked"
     )
-    summary: str = Field(description="in a few words, e.g. 'combined; 50 x 50 until 20 curves'")
+    summary: str = Field(description="in a few words, e.g. 'combined; 50 x 50 until curves totalling 6.2 sqrt(area)'")
     reason: str = Field(description="why: the rules that chose the energy, its weights and the size")
 
     @classmethod

@@ -130,9 +130,9 @@ def build_solver(
     solver_class = energy_solver(record, pair)
     background: dict[str, Any] = {}
     if solver_class is CombinedMapSolver and landmark_prior:
-        background = {"prior_executor": prior_executor}
+        background = {"prior_executor": prior_executor, "source_area": pair.mesh_M.area}
     elif solver_class is CombinedMapSolver:
-        background = {"prior_weight": 0.0}
+        background = {"prior_weight": 0.0, "source_area": pair.mesh_M.area}
     solver = solver_class(
         pair.mesh_M.vertices,
         pair.basis_M,
