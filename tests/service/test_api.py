@@ -171,6 +171,9 @@ def test_quality_is_the_round_trip_drift_per_target_vertex(server):
 
 
 def test_a_suggested_curve_lies_away_from_the_curves_and_adds_as_a_curve(server):
+    fresh = server.client.post("/sessions", json={"source": server.shapes[0], "target": server.shapes[1], "k": K})
+    first = server.client.get(f"/sessions/{fresh.json()['id']}/suggestion").raise_for_status().json()
+    assert len(set(first["source"])) == 2  # with no curve yet: where the drift is largest, far apart
     url = f"/sessions/{server.session}"
     server.client.post(f"{url}/curves", json={"source": [19, 432], "target": [19, 432]}).raise_for_status()
     suggested = server.client.get(f"{url}/suggestion").raise_for_status().json()
