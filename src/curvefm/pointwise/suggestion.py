@@ -10,17 +10,16 @@ from the geodesic distance to what is already given, like a farthest-point sampl
   too, and the path joining them crosses unconstrained surface.
 
 The square root was measured (benchmarks/bench_suggestions.py, every suggested end placed at the truth, FAUST
-000 -> 011 and cat -> lion, 2026-11-28): the drift alone (``drift * d``) sent curve after curve to the extremities
-and stayed above the unassisted protocol's error at every count up to 7 on FAUST (0.0418 at 7 curves against 0.0254);
-the distance alone (plain farthest points from the curves) reached 0.0263 / 0.0285 at 7 curves; ``sqrt(drift)``
-0.0257 at 6 on FAUST and 0.0273 at 7 on cat -> lion. Two pairs only: a weight to revisit on held-out pairs.
+000 -> 011 and cat -> lion, 2026-11-28; docs/accuracy.md#suggested-curves): the drift alone (``drift * d``) sent
+curve after curve to the extremities and stayed above 0.040 on FAUST up to 6 curves (the unassisted protocol: 0.0265
+at 6); the distance alone (plain farthest points from the curves) reached 0.0258 on FAUST and 0.0285 on cat -> lion
+at 7 curves; ``sqrt(drift)`` 0.0257 and 0.0273. Two pairs only: a weight to revisit on held-out pairs.
 
 Their images on the target are the maps' own (nearest neighbours in both spectral embeddings, as the default
 pointwise conversion): the person accepts them, or moves an end where the map is wrong. Distances are graph
 shortest paths along the mesh edges, in units of ``sqrt(area)``: one multi-source Dijkstra from the curves and one
-from the start (milliseconds at 7k vertices, about 0.3 s at 110k), so it is read in a request of its own and no
-edit waits for it. ``docs/accuracy.md`` (suggested curves) gives what it gains, measured by
-``benchmarks/bench_suggestions.py``.
+from the start, a pass over the mesh each, so the suggestion is read in a request of its own and no edit waits for
+it.
 """
 
 from __future__ import annotations
