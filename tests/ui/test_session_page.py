@@ -279,17 +279,31 @@ NEAR_PIXEL_JS = """
 
 def pick_suggested_end(page, suggestion: dict, within: int = 8) -> tuple[str, int]:
     """Click near a suggested end until the page takes it for moving (an end behind the shape is not clickable:
-    the click lands on the front, and Escape cancels it); return its side and index."""
-    for side in ("source", "target"):
-        for index, vertex in enumerate(suggestion[side]):
-            pixel = page.evaluate(NEAR_PIXEL_JS, [side, vertex, within])
-            if pixel is None:
-                continue
-            page.mouse.click(*pixel)
-            if "suggested curve belongs" in page.inner_text("#hint"):
-                return side, index
-            page.keyboard.press("Escape")
-    raise AssertionError(f"no end of the suggested curve {suggestion} could be clicked")
+    the click lands on the front, and Escape cancels it), turning the linked cameras when none is in view; return
+    its side and index."""
+    for _ in range(4):
+        for side in ("source", "target"):
+            for index, vertex in enumerate(suggestion[side]):
+                pixel = page.evaluate(NEAR_PIXEL_JS, [side, vertex, within])
+                if pixel is None:
+                    continue
+                page.mouse.click(*pixel)
+                if "suggested curve belongs" in page.inner_text("#hint"):
+                    return side, index
+                page.keyboard.press("Escape")
+        turn_cameras(page)
+    raise AssertionError(f"no end of the suggested curve {suggestion} could be clicked from four sides")
+
+
+def turn_cameras(page) -> None:
+    """Drag across the source view: the linked cameras turn both shapes (a drag is no click)."""
+    box = page.locator("#source-view canvas").bounding_box()
+    x, y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+    page.mouse.move(x - box["width"] / 4, y)
+    page.mouse.down()
+    page.mouse.move(x + box["width"] / 4, y, steps=8)
+    page.mouse.up()
+    next_frames(page)
 
 
 def test_a_read_only_session_refuses_clicks_before_they_are_made(browser, demo):
