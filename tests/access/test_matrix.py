@@ -181,6 +181,7 @@ RULES: dict[tuple[str, str], Rule] = {
     ("get", "/sessions/{session_id}/solve"): Rule(lambda w: Call(session(w)), other=404),
     ("get", "/sessions/{session_id}/transfer"): Rule(lambda w: Call(session(w), params={"function": "xyz"}), other=404),
     ("get", "/sessions/{session_id}/quality"): Rule(lambda w: Call(session(w)), other=404),
+    ("get", "/sessions/{session_id}/suggestion"): Rule(lambda w: Call(session(w)), other=404),
     ("get", "/sessions/{session_id}/refinements"): Rule(lambda w: Call(session(w)), other=404),
     ("get", "/sessions/{session_id}/events"): Rule(lambda w: Call(session(w)), other=404),
     ("get", "/sessions/{session_id}/exports/{export}"): Rule(

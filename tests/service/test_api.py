@@ -170,6 +170,30 @@ def test_quality_is_the_round_trip_drift_per_target_vertex(server):
     assert drift[int(response.headers["X-Worst-Target"])] == drift[clear].max()
 
 
+def test_a_suggested_curve_lies_away_from_the_curves_and_adds_as_a_curve(server):
+    fresh = server.client.post("/sessions", json={"source": server.shapes[0], "target": server.shapes[1], "k": K})
+    first = server.client.get(f"/sessions/{fresh.json()['id']}/suggestion").raise_for_status().json()
+    assert len(set(first["source"])) == 2  # with no curve yet: where the drift is largest, far apart
+    url = f"/sessions/{server.session}"
+    server.client.post(f"{url}/curves", json={"source": [19, 432], "target": [19, 432]}).raise_for_status()
+    suggested = server.client.get(f"{url}/suggestion").raise_for_status().json()
+    record = server.client.get(url).json()
+    assert suggested["revision"] == record["revision"] and isinstance(suggested["prior_pending"], bool)
+    source = demo_shapes()[0]
+    unit = source.vertices / np.sqrt(source.area)
+    on_curves = unit[np.concatenate([curve["path_source"] for curve in record["curves"]])]
+    ends = unit[suggested["source"]]
+    # the ends lie where no curve is, apart from each other; the demo pair is one shape, so the images land near them
+    assert np.linalg.norm(ends[:, None] - on_curves[None], axis=2).min() > CLEAR_OF_CURVES
+    assert np.linalg.norm(ends[0] - ends[1]) > CLEAR_OF_CURVES
+    assert all(0 <= vertex < 4098 for vertex in suggested["target"])
+    spec = {"source": suggested["source"], "target": suggested["target"]}
+    added = server.client.post(f"{url}/curves", json=spec).raise_for_status().json()["curve"]
+    assert added["path_source"][0] == suggested["source"][0] and added["path_target"][-1] == suggested["target"][1]
+    following = server.client.get(f"{url}/suggestion").raise_for_status().json()
+    assert following["revision"] > suggested["revision"] and following["source"] != suggested["source"]
+
+
 def test_a_deleted_curve_comes_back_under_its_id_at_its_place(server):
     url = f"/sessions/{server.session}/curves"
     ids = [

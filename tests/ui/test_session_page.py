@@ -223,6 +223,90 @@ def test_the_figures_are_marked_until_the_landmark_prior_lands_then_refreshed(pa
     assert page.is_hidden("#quality-legend")
 
 
+def test_the_suggested_curve_is_shown_and_accepted_as_a_curve_with_its_ends(page, demo):
+    def shown_suggestion() -> dict | None:
+        return page.evaluate("window.curvefm.suggestion")
+
+    def settled() -> bool:
+        shown, served = shown_suggestion(), demo.client.get(f"/sessions/{DEMO_SESSION}/suggestion").json()
+        return bool(shown and shown["revision"] == served["revision"] and not served["prior_pending"]) and all(
+            shown[side] == served[side] for side in ("source", "target")
+        )
+
+    wait_until(settled, "the page shows the suggestion the service makes now")
+    assert page.is_enabled("#accept-suggestion")
+    screenshot(page, "13-suggested-curve")
+    # move an end the camera shows: click it, then click where it belongs
+    side, index = pick_suggested_end(page, shown_suggestion())
+    elsewhere = next(v for v in pickable_vertices(page) if v["id"] not in shown_suggestion()[side])
+    page.mouse.click(*elsewhere[side])
+    suggested = shown_suggestion()
+    assert suggested[side][index] == elsewhere["id"]
+    before = session(demo)
+    samples = page.evaluate("window.curvefmStats.samples.length")
+    page.keyboard.press("a")
+    page.wait_for_function("(n) => window.curvefmStats.samples.length > n", arg=samples, timeout=30_000)
+    after = session(demo)
+    assert len(after["curves"]) == len(before["curves"]) + 1
+    added = after["curves"][-1]
+    ends = {side: [added[f"path_{side}"][0], added[f"path_{side}"][-1]] for side in ("source", "target")}
+    assert ends == {side: suggested[side] for side in ("source", "target")}
+    # the next suggestion belongs to the new revision; unchecking the box hides it and disables the button
+    wait_until(lambda: (shown_suggestion() or {}).get("revision") == after["revision"], "a new suggestion is shown")
+    page.uncheck("#show-suggestion")
+    assert not page.is_enabled("#accept-suggestion")
+
+
+NEAR_PIXEL_JS = """
+([side, vertex, within]) => {
+  const end = window.curvefm.vertexToScreen(side, vertex);
+  if (!end.visible) return null;
+  for (let r = 0; r <= within; r++) {
+    for (let dx = -r; dx <= r; dx++) {
+      for (let dy = -r; dy <= r; dy++) {
+        if (Math.max(Math.abs(dx), Math.abs(dy)) !== r) continue;
+        const x = Math.round(end.x) + dx, y = Math.round(end.y) + dy;
+        const id = window.curvefm.screenToVertex(side, x, y);
+        if (id === null) continue;
+        const at = window.curvefm.vertexToScreen(side, id);
+        if (Math.hypot(at.x - end.x, at.y - end.y) <= within) return [x, y];
+      }
+    }
+  }
+  return null;
+}
+"""
+
+
+def pick_suggested_end(page, suggestion: dict, within: int = 8) -> tuple[str, int]:
+    """Click near a suggested end until the page takes it for moving (an end behind the shape is not clickable:
+    the click lands on the front, and Escape cancels it), turning the linked cameras when none is in view; return
+    its side and index."""
+    for _ in range(4):
+        for side in ("source", "target"):
+            for index, vertex in enumerate(suggestion[side]):
+                pixel = page.evaluate(NEAR_PIXEL_JS, [side, vertex, within])
+                if pixel is None:
+                    continue
+                page.mouse.click(*pixel)
+                if "suggested curve belongs" in page.inner_text("#hint"):
+                    return side, index
+                page.keyboard.press("Escape")
+        turn_cameras(page)
+    raise AssertionError(f"no end of the suggested curve {suggestion} could be clicked from four sides")
+
+
+def turn_cameras(page) -> None:
+    """Drag across the source view: the linked cameras turn both shapes (a drag is no click)."""
+    box = page.locator("#source-view canvas").bounding_box()
+    x, y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+    page.mouse.move(x - box["width"] / 4, y)
+    page.mouse.down()
+    page.mouse.move(x + box["width"] / 4, y, steps=8)
+    page.mouse.up()
+    next_frames(page)
+
+
 def test_a_read_only_session_refuses_clicks_before_they_are_made(browser, demo):
     """A session shared for reading says so before the first click; clicks add no point and send nothing."""
     record = session(demo)

@@ -363,6 +363,12 @@ class Session:
         50 x 50 until curves totalling 6.2 sqrt(area)") and ``reason``."""
         return self.client.json("GET", f"{self.path}/solve")
 
+    def suggestion(self) -> dict[str, Any]:
+        """The next curve to draw: ``source`` (its start and end where the maps are least certain) and ``target``
+        (their images through the maps), file ids, with the ``revision`` whose maps made it and ``prior_pending``.
+        ``add_curve(s["source"], s["target"])`` adds it; move an end first where its image is wrong."""
+        return self.client.json("GET", f"{self.path}/suggestion")
+
     def refine(self, converter: str = "nearest-neighbor", **params: Any) -> RefineJob:
         """Start pointwise maps both ways from the curves as they are now (a job; ``.wait()`` answers them)."""
         body = {"converter": converter, "params": params}

@@ -34,12 +34,14 @@ from curvefm.pointwise.sampled import (
     match_rows,
     refinement_samples,
 )
+from curvefm.pointwise.suggestion import SuggestedCurve, suggest_curve
 
 __all__ = [
     "APPROXIMATE_FROM_PAIRS",
     "AUTO_SAMPLES",
     "DENSE_UP_TO",
     "Search",
+    "SuggestedCurve",
     "VertexRows",
     "CurvePins",
     "MapQuality",
@@ -59,6 +61,7 @@ __all__ = [
     "pointwise_from_both",
     "pointwise_from_fmap",
     "refinement_samples",
+    "suggest_curve",
     "unit_area",
     "uses_approximate",
 ]

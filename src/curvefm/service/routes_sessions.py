@@ -65,6 +65,7 @@ from curvefm.service.permissions import Need, job_for, session_for
 from curvefm.session import (
     NAME_LENGTH,
     CurveSpec,
+    CurveSuggestion,
     SessionCreate,
     SessionRecord,
     SolveStatement,
@@ -432,6 +433,17 @@ def get_quality(
         "X-Prior-Pending": "true" if quality.prior_pending else "false",
     }
     return Response(quality.drift.astype("<f4").tobytes(), media_type="application/octet-stream", headers=headers)
+
+
+@router.get("/sessions/{session_id}/suggestion", response_model=CurveSuggestion, responses=ERRORS)
+def get_suggestion(session_id: str, services: ServicesDep, user: CurrentUser) -> CurveSuggestion:
+    """The next curve to draw: its start and end on the source where the live maps are least certain (large
+    round-trip drift, far along the surface from every curve and from each other), and their images on the target
+    through the maps, as file ids, with the ``revision`` whose maps made it. The web UI draws it faintly after each
+    edit; adding it is an ordinary ``POST .../curves`` with these ends (moved first where the images are wrong).
+    Read apart from the edit, so that no edit waits for it; ``prior_pending: true``: ask again shortly."""
+    session_for(services, user, session_id, "read")
+    return services.sessions.suggestion(session_id)
 
 
 EXPORT_TYPES = {

@@ -27,6 +27,7 @@ from curvefm.session.curves import (
     trace_pair,
 )
 from curvefm.session.editing import (
+    CurveSuggestion,
     MapQuality,
     MapSummary,
     SessionEditor,
@@ -86,6 +87,7 @@ __all__ = [
     "LiveSession",
     "LiveSessions",
     "MapQuality",
+    "CurveSuggestion",
     "MapSize",
     "MapSummary",
     "MissingBasis",

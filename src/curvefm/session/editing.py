@@ -27,6 +27,7 @@ from curvefm import registry
 from curvefm.errors import Conflict, NotFound, RevisionMismatch, StaleRevision, shown
 from curvefm.fmap import EffectiveSolve, FunctionTransfer
 from curvefm.geometry import DisplayMesh, Mesh, texture_coordinates
+from curvefm.pointwise import suggest_curve
 from curvefm.registry import Plugin
 from curvefm.session.curves import CurveSpec, trace_pair
 from curvefm.session.limits import SessionLimits
@@ -107,6 +108,20 @@ class MapQuality:
     worst_source: int
     revision: int
     prior_pending: bool
+
+
+class CurveSuggestion(BaseModel):
+    """The next curve to draw (:func:`curvefm.pointwise.suggest_curve`): its ends on the source where the live maps
+    are least certain, and their images on the target through those maps."""
+
+    revision: int = Field(description="the session revision whose maps made the suggestion")
+    source: list[int] = Field(min_length=2, max_length=2, description="file ids of the start and the end on the source")
+    target: list[int] = Field(
+        min_length=2, max_length=2, description="file ids of their images on the target (the maps' own)"
+    )
+    prior_pending: bool = Field(
+        description="the maps will still improve once the landmark prior for this revision lands: ask again shortly"
+    )
 
 
 @dataclass(frozen=True)
@@ -334,6 +349,21 @@ class SessionEditor:
             worst_target=int(live.pair.mesh_N.file_ids[found.worst_target]),
             worst_source=int(live.pair.mesh_M.file_ids[found.worst_source]),
             revision=record.revision,
+            prior_pending=prior_pending,
+        )
+
+    def suggestion(self, session_id: str) -> CurveSuggestion:
+        """Where one more curve helps most, from the live maps (both solved now if an edit deferred them)."""
+        with self.live.using(session_id) as live:
+            prior_pending = live.solver.prior_pending  # first: a prior landing meanwhile costs one more read
+            C_MN, C_NM, record, measure = live.solver.C_MN, live.solver.C_NM, live.record, live.round_trip
+        curves_M, curves_N = _curve_vertices(live.pair, record)
+        drift = measure.measure(C_MN, C_NM, curves_M, curves_N)
+        found = suggest_curve(live.pair, C_MN, C_NM, drift.source, curves_M)
+        return CurveSuggestion(
+            revision=record.revision,
+            source=live.pair.mesh_M.file_ids[list(found.source)].tolist(),
+            target=live.pair.mesh_N.file_ids[list(found.target)].tolist(),
             prior_pending=prior_pending,
         )
 

@@ -162,6 +162,9 @@ export const api = {
       priorPending: headers.get("X-Prior-Pending") === "true",
     };
   },
+  /** The next curve to draw (see GET /sessions/{id}/suggestion): { revision, source: [start, end], target:
+   * [their images], prior_pending }, file ids. */
+  suggestion: (id) => request("GET", `/sessions/${enc(id)}/suggestion`),
   /** The live maps' round trip per drawn target vertex (see GET /sessions/{id}/quality): { drift: Float32Array,
    * score, worstTarget, worstSource (file ids clear of the curves), revision, priorPending (these figures will still
    * change once the landmark prior for this revision lands) }. */

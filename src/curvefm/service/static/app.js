@@ -13,7 +13,14 @@ import {
   runReady,
 } from "./controllers/collections.js";
 import { watchConnection } from "./controllers/connection.js";
-import { cancelPending, clickCurveList, pickVertex, pressKey, undo } from "./controllers/curves.js";
+import {
+  acceptSuggestion,
+  cancelPending,
+  clickCurveList,
+  pickVertex,
+  pressKey,
+  undo,
+} from "./controllers/curves.js";
 import {
   changeRegionRadius,
   followCameras,
@@ -31,6 +38,7 @@ import { logOut, makeToken, watchLogin } from "./controllers/login.js";
 import { openPair, upload } from "./controllers/pair.js";
 import { cancelRefine, downloadLiveExport, refine } from "./controllers/refine.js";
 import { toggleQuality } from "./controllers/quality.js";
+import { toggleSuggestion } from "./controllers/suggestion.js";
 import {
   chooseSession,
   deleteSession,
@@ -107,6 +115,8 @@ function bindControls() {
   on("link-cameras", "change", (event) => linkCameras(event.target.checked));
   on("show-curves", "change", (event) => showCurveTubes(event.target.checked));
   on("show-quality", "change", (event) => toggleQuality(event.target.checked));
+  on("show-suggestion", "change", (event) => toggleSuggestion(event.target.checked));
+  on("accept-suggestion", "click", (event) => acceptSuggestion(event.timeStamp));
   on("texture-input", "change", (event) => useTextureImage(event.target));
   // Refine & export
   on("converter-select", "change", () => showParameters("converter"));
@@ -136,6 +146,11 @@ function installTestHooks() {
     get quality() {
       const { quality } = state;
       return quality && { score: quality.score, revision: quality.revision, priorPending: quality.priorPending };
+    },
+    /** The suggested next curve as shown (ends possibly moved): { revision, source, target } in file ids, or null. */
+    get suggestion() {
+      const { suggestion } = state;
+      return suggestion && { revision: suggestion.revision, source: [...suggestion.source], target: [...suggestion.target] };
     },
     /** How many curve tubes one side draws. */
     tubeCount(side) {

@@ -16,6 +16,11 @@ export const state = {
   texture: null, // the image carried as "uv" (a THREE texture)
   quality: null, // the live maps' round trip (api.quality) of some revision, or null
   solve: null, // what the live maps are (api.solve, or an edit's map.solve): { energy, weights, size, summary, reason }
+  // the next curve the service suggests (api.suggestion; ends possibly moved by the user), or null; moving: the end
+  // being moved ({ side, index }: its next click on that side places it), or null
+  suggestion: null,
+  showSuggestion: true,
+  moving: null,
   showQuality: false, // the target is tinted by the round-trip drift and the weakest regions are ringed
   selected: null, // curve id drawn thicker
   // The clicks of the curve pair being entered, internal vertex ids per side. A plain click adds a point, and
@@ -64,6 +69,7 @@ export function sessionOpened(session, shapes, guide = null) {
   state.guide = guide;
   state.quality = null;
   state.solve = null;
+  Object.assign(state, { suggestion: null, moving: null });
   Object.assign(state, { selected: null, map: "functional", history: storedHistory(session), pending: noClicks() });
 }
 
@@ -257,6 +263,26 @@ export function setQuality(quality) {
 export function qualityStale() {
   const { quality, session } = state;
   return Boolean(quality && (quality.priorPending || quality.revision !== session?.revision));
+}
+
+export function setSuggestion(suggestion) {
+  state.suggestion = suggestion;
+  state.moving = null;
+}
+
+export function setShowSuggestion(show) {
+  state.showSuggestion = show;
+}
+
+/** The next click on ``side`` places end ``index`` (0: start, 1: end) of the suggestion; null: none is moved. */
+export function setMoving(moving) {
+  state.moving = moving;
+}
+
+/** Move an end of the suggestion to ``fileId``. */
+export function moveSuggestedEnd(side, index, fileId) {
+  state.suggestion[side][index] = fileId;
+  state.moving = null;
 }
 
 export function setShowQuality(show) {

@@ -7,6 +7,7 @@ import { banner, report, toast } from "../views/messages.js";
 import { showSessionName, showSessionTitle, showSharing, showStatus } from "../views/page.js";
 import { showFeedback } from "./feedback.js";
 import { refreshQuality, refreshSolve } from "./quality.js";
+import { refreshSuggestion } from "./suggestion.js";
 import { refreshLists } from "./session.js";
 
 /** Follow state.connected, which every request sets. */
@@ -53,7 +54,7 @@ export async function resync() {
       const curves = `${record.curves.length} curve${record.curves.length === 1 ? "" : "s"}`;
       toast(`The session changed elsewhere (revision ${shown} → ${record.revision}, ${curves}): shown as it is now.`);
       await showFeedback();
-      await Promise.all([refreshSolve(), refreshQuality()]);
+      await Promise.all([refreshSolve(), refreshQuality(), refreshSuggestion()]);
     }
     showStatus();
   } catch (error) {

@@ -9,7 +9,9 @@ import {
   pendingComplete,
   recordEdit,
   selectCurve,
+  setMoving,
   setPickingRegion,
+  setSuggestion,
   state,
 } from "../store.js";
 import { showCurves, showPending, showTracing } from "../views/curves.js";
@@ -19,6 +21,7 @@ import { toast } from "../views/messages.js";
 import { chooseRegion } from "./display.js";
 import { edits, runEdit } from "./edits.js";
 import { answerTemplateCurve } from "./guide.js";
+import { clickSuggestion, showSuggestion } from "./suggestion.js";
 
 /** A click on a vertex of one shape (internal id): a point of the curve being entered, or the region's centre. */
 export function pickVertex(side, vertex, event) {
@@ -31,6 +34,7 @@ export function pickVertex(side, vertex, event) {
     refuseClick();
     return;
   }
+  if (!answeringTemplate() && clickSuggestion(side, vertex)) return;
   const answering = answeringTemplate();
   clickPending(side, vertex, event.shiftKey);
   if (answering && side === "target" && state.pending.closed.target) answerTemplateCurve(event.timeStamp);
@@ -121,18 +125,37 @@ async function undoNewest() {
   return edit;
 }
 
+/** Add the suggested curve (ends as moved) with the chosen tracer. */
+export function acceptSuggestion(clickTime) {
+  const { suggestion } = state;
+  if (!suggestion || !state.showSuggestion || !state.ready || !mayEdit()) return null;
+  const spec = { source: [...suggestion.source], target: [...suggestion.target], ...tracerChoice() };
+  setSuggestion(null);
+  showSuggestion();
+  return runEdit(clickTime, "add", "The suggested curve was not added", async () => {
+    const edit = await edits.add(spec);
+    recordEdit("add", edit.curve);
+    return edit;
+  });
+}
+
 export function cancelPending() {
   clearPending();
   showPending();
 }
 
-/** Escape cancels the clicks so far (and choosing a region); Ctrl+Z (Cmd+Z) undoes. Not while typing. */
+/** Escape cancels the clicks so far (and choosing a region, and moving a suggested end); Ctrl+Z (Cmd+Z) undoes; A
+ * accepts the suggested curve. Not while typing. */
 export function pressKey(event) {
   if (event.target.closest("input, select, textarea")) return;
   if (event.key === "Escape") {
     clearPending();
     setPickingRegion(false);
+    setMoving(null);
     showPending();
+    showSuggestion();
+  } else if (event.key === "a" && !event.ctrlKey && !event.metaKey && !event.altKey) {
+    acceptSuggestion(event.timeStamp);
   } else if ((event.ctrlKey || event.metaKey) && event.key === "z" && state.ready) {
     event.preventDefault();
     undo(performance.now());

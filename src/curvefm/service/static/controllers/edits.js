@@ -22,6 +22,7 @@ import { refreshCollection } from "./collections.js";
 import { resync } from "./connection.js";
 import { carriedFromAnswer, carriedFunction } from "./feedback.js";
 import { refreshQuality } from "./quality.js";
+import { refreshSuggestion } from "./suggestion.js";
 
 /** The session's edits: call the service, then keep the local record in step with its answer. */
 export const edits = {
@@ -104,6 +105,7 @@ export async function runEdit(clickTime, kind, failure, perform) {
       requests: answered ? 1 : 2, // the edit alone, or the edit and the transfer read
     });
     refreshQuality(); // after the texture: the reverse map it needs is solved while the user looks
+    refreshSuggestion(); // a request of its own, after the texture too
   } catch (error) {
     showPending();
     report(error, failure);

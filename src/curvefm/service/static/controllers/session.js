@@ -32,6 +32,7 @@ import {
 import { orientViews, paint, showShapes, showSource, SIDES, viewports } from "../views/viewports.js";
 import { carriedRows } from "./feedback.js";
 import { refreshQuality, refreshSolve } from "./quality.js";
+import { refreshSuggestion } from "./suggestion.js";
 import { restoreRefinement } from "./refine.js";
 
 /** The session list's choice. */
@@ -111,6 +112,7 @@ export async function openSession(id, { guide = null } = {}) {
     setFollowed(id);
     refreshSolve();
     refreshQuality();
+    refreshSuggestion();
     restoreRefinement();
   } catch (error) {
     report(error, `Session ${id} could not be opened`);

@@ -53,6 +53,9 @@ export class Viewport {
     this.surface.add(this.curveGroup);
     this.markers = new THREE.Group();
     this.surface.add(this.markers);
+    this.suggested = new THREE.Group(); // the suggested curve's ends: faint balls (setSuggestion)
+    this.surface.add(this.suggested);
+    this.suggestedRows = [];
     // a translucent ball over a region of the surface (the weakest region of the maps), scaled in setMesh
     const ball = new THREE.MeshBasicMaterial({ color: 0x00e5ff, transparent: true, opacity: 0.45, depthWrite: false });
     this.highlight = new THREE.Mesh(new THREE.SphereGeometry(1, 24, 16), ball);
@@ -68,6 +71,7 @@ export class Viewport {
   setMesh(mesh) {
     this.setCurves([]);
     this.setMarkers([]);
+    this.setSuggestion([]);
     if (this.mesh) {
       this.surface.remove(this.mesh);
       this.mesh.geometry.dispose();
@@ -237,6 +241,27 @@ export class Viewport {
       marker.position.fromBufferAttribute(positions, vertex);
       this.markers.add(marker);
     }
+    this.frames.request(this);
+  }
+
+  /** The suggested curve's ends (internal ids, -1: not placed yet) as faint grey balls; the one at ``moving``
+   * (an index, or -1) yellow: the user's next click places it. */
+  setSuggestion(rows, moving = -1) {
+    for (const ball of [...this.suggested.children]) {
+      this.suggested.remove(ball);
+      ball.material.dispose();
+    }
+    this.suggestedRows = [...rows];
+    const positions = this.mesh?.geometry.attributes.position;
+    rows.forEach((vertex, index) => {
+      if (vertex < 0 || !positions) return;
+      const color = index === moving ? 0xffb000 : 0x5a6070;
+      const material = new THREE.MeshBasicMaterial({ color, transparent: true, opacity: 0.5, depthWrite: false });
+      const ball = new THREE.Mesh(this.markerGeometry, material);
+      ball.scale.setScalar(1.6);
+      ball.position.fromBufferAttribute(positions, vertex);
+      this.suggested.add(ball);
+    });
     this.frames.request(this);
   }
 

@@ -1,0 +1,64 @@
+"""A suggested next curve: where the live maps are least certain, and where they send it.
+
+The person drawing curves wants to know where one more curve helps most. Both ends are chosen on the source,
+from the round-trip drift of the maps (:mod:`curvefm.fmap.round_trip`: large where no curve constrains them) and
+from the geodesic distance to what is already given, like a farthest-point sampling weighted by the drift:
+
+* the start maximises ``sqrt(drift(v)) * d(v)`` with ``d`` the distance to the nearest vertex of any curve (1
+  everywhere when there is none);
+* the end maximises ``sqrt(drift(v)) * min(d(v), d_start(v))``, so it lies far from the curves and from the start
+  too, and the path joining them crosses unconstrained surface.
+
+The square root was measured (benchmarks/bench_suggestions.py, every suggested end placed at the truth, FAUST
+000 -> 011 and cat -> lion, 2026-11-28; docs/accuracy.md#suggested-curves): the drift alone (``drift * d``) sent
+curve after curve to the extremities and stayed above 0.040 on FAUST up to 6 curves (the unassisted protocol: 0.0265
+at 6); the distance alone (plain farthest points from the curves) reached 0.0258 on FAUST and 0.0285 on cat -> lion
+at 7 curves; ``sqrt(drift)`` 0.0257 and 0.0273. Two pairs only: a weight to revisit on held-out pairs.
+
+Their images on the target are the maps' own (nearest neighbours in both spectral embeddings, as the default
+pointwise conversion): the person accepts them, or moves an end where the map is wrong. Distances are graph
+shortest paths along the mesh edges, in units of ``sqrt(area)``: one multi-source Dijkstra from the curves and one
+from the start, a pass over the mesh each, so the suggestion is read in a request of its own and no edit waits for
+it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse.csgraph import dijkstra
+
+from curvefm.geometry import Mesh
+from curvefm.pointwise.conversion import pointwise_from_both
+from curvefm.spectral import ShapePair
+
+
+@dataclass(frozen=True)
+class SuggestedCurve:
+    """Internal ids: the curve's ``source`` ends (start, end) and their ``target`` images through the maps."""
+
+    source: tuple[int, int]
+    target: tuple[int, int]
+
+
+def suggest_curve(
+    pair: ShapePair, C_MN: np.ndarray, C_NM: np.ndarray, drift_M: np.ndarray, curves_M: np.ndarray
+) -> SuggestedCurve:
+    """The next curve to draw, given both maps (``C_MN`` k_N x k_M, ``C_NM`` k_M x k_N, on ``pair``'s bases),
+    the round-trip ``drift_M`` per source vertex and the internal ids ``curves_M`` of the curves' source vertices."""
+    mesh_M, weight = pair.mesh_M, np.sqrt(np.maximum(drift_M, 0.0))
+    from_curves = _distances(mesh_M, curves_M) if len(curves_M) else np.ones(mesh_M.n_vertices)
+    start = int(np.argmax(weight * from_curves))
+    end = int(np.argmax(weight * np.minimum(from_curves, _distances(mesh_M, np.array([start])))))
+    rows = np.array([start, end])
+    images = pointwise_from_both(C_NM, C_MN, pair.basis_N, pair.basis_M, rows=rows)
+    return SuggestedCurve(source=(start, end), target=(int(images[0]), int(images[1])))
+
+
+def _distances(mesh: Mesh, sources: np.ndarray) -> np.ndarray:
+    """Graph distance (along edges, units of ``sqrt(area)``) from every vertex to the nearest of ``sources``; a
+    part of the mesh that no path reaches counts as twice the farthest distance reached (far, and finite)."""
+    nearest = np.asarray(dijkstra(mesh.edge_graph, indices=np.unique(sources), min_only=True))
+    reached = nearest[np.isfinite(nearest)]
+    return np.nan_to_num(nearest, posinf=2 * reached.max()) / np.sqrt(mesh.area)

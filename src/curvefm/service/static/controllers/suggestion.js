@@ -1,0 +1,71 @@
+// The suggested next curve: after each edit the service proposes where one more curve helps most (its ends on the
+// source where the map is least certain, and where the map sends them on the target). Its ends are drawn as
+// faint grey balls on both shapes; "Accept suggestion" (or the A key) adds it as a curve (controllers/curves.js). To move
+// an end first, click near it (within SNAP of the shape's size), then click where it belongs on the same shape.
+import { api } from "../api.js";
+import { mayEdit, moveSuggestedEnd, pendingEmpty, setMoving, setShowSuggestion, setSuggestion, state } from "../store.js";
+import { $ } from "../views/dom.js";
+import { report } from "../views/messages.js";
+import { SIDES, viewports } from "../views/viewports.js";
+
+const SNAP = 0.04; // a click this close to a suggested end (a fraction of the shape's bounding diagonal) picks it
+const PRIOR_POLL_MS = 600; // as the quality's: the landmark prior lands about a second after an edit
+let nextRead = null; // the timer of the next read while the landmark prior is pending
+
+/** Ask for the suggestion for the session's current maps and show it; an answer overtaken by another revision or
+ * session is dropped. Read after the texture is drawn, in a request of its own: no edit waits for it. */
+export async function refreshSuggestion() {
+  const session = state.session;
+  if (!session || !state.showSuggestion) return;
+  clearTimeout(nextRead);
+  try {
+    const suggestion = await api.suggestion(session.id);
+    const { source, target } = state.shapes; // ends a display copy does not draw are shown at its nearest vertex
+    await Promise.all([source.points.load(suggestion.source), target.points.load(suggestion.target)]);
+    if (state.session !== session || suggestion.revision !== session.revision) return;
+    if (!state.moving) setSuggestion(suggestion); // an end being moved keeps the suggestion it belongs to
+    showSuggestion();
+    if (suggestion.prior_pending) nextRead = setTimeout(refreshSuggestion, PRIOR_POLL_MS);
+  } catch (error) {
+    if (error.kind !== "network") report(error, "No next curve could be suggested");
+  }
+}
+
+/** Draw the suggestion's ends on both shapes (none while it is hidden or there is none) and enable its button. */
+export function showSuggestion() {
+  const { suggestion, showSuggestion: shown, moving } = state;
+  for (const side of SIDES) {
+    const rows = shown && suggestion ? [...state.shapes[side].points.rows(suggestion[side])] : [];
+    viewports[side].setSuggestion(rows, moving?.side === side ? moving.index : -1);
+  }
+  $("accept-suggestion").disabled = !(shown && suggestion && state.ready && mayEdit());
+  if (moving) $("hint").textContent = `Click where this end of the suggested curve belongs on the ${moving.side}.`;
+}
+
+/** The checkbox. */
+export function toggleSuggestion(show) {
+  setShowSuggestion(show);
+  showSuggestion();
+  if (show && state.ready && state.suggestion?.revision !== state.session.revision) refreshSuggestion();
+}
+
+/** A click on a shape while a suggestion is shown and no curve is being entered: it picks a suggested end near it,
+ * or places the end being moved. Returns whether the click was the suggestion's. */
+export function clickSuggestion(side, vertex) {
+  const { suggestion, moving } = state;
+  if (!suggestion || !state.showSuggestion || !pendingEmpty()) return false;
+  const { mesh, diagonal } = state.shapes[side];
+  if (moving?.side === side) {
+    moveSuggestedEnd(side, moving.index, mesh.fileIds[vertex]);
+    showSuggestion();
+    return true;
+  }
+  const rows = viewports[side].suggestedRows;
+  const distance = (row) => (row < 0 ? Infinity : Math.hypot(...[0, 1, 2].map((i) => mesh.vertices[3 * row + i] - mesh.vertices[3 * vertex + i])));
+  const near = rows.map(distance);
+  const index = near.indexOf(Math.min(...near));
+  if (near[index] > SNAP * diagonal) return false;
+  setMoving({ side, index });
+  showSuggestion();
+  return true;
+}
