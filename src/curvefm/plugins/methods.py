@@ -34,6 +34,7 @@ from curvefm.fmap import (
     KERNEL_POINTS,
     NON_ISOMETRIC_DISTORTION,
     NON_ISOMETRIC_SPECTRA,
+    SIDE_CURVES,
     CombinedMapSolver,
     CurveMapSolver,
     FunctionalMaps,
@@ -87,6 +88,13 @@ class CombinedParams(CurvesParams):
         description="with fewer curves than this (and a prior) the map has the "
         "prior's size, 50 x 50: its higher frequencies are not determined yet and would blur the pointwise map",
     )
+    side_curves: int = Field(
+        SIDE_CURVES,
+        ge=0,
+        le=100_000,
+        description="up to this many curves the landmark prior also keeps each curve's side (left or right of the "
+        "curve, which tells a shape from its mirror image); 0: never",
+    )
     full_size_alpha: float = Field(
         FULL_SIZE_ALPHA, ge=0, description="weight of Laplacian commutativity from full_size_curves curves on"
     )
@@ -134,6 +142,8 @@ def _solve_curves(
         raise InvalidInput("the curve-based methods need at least one pair of curves")
     k = min(pair.basis_M.k, pair.basis_N.k)
     vertices_and_bases = (pair.mesh_M.vertices, pair.basis_M, pair.mesh_N.vertices, pair.basis_N)
+    if issubclass(solver_class, CombinedMapSolver):
+        params = {**params, "meshes": pair.meshes}  # for the sides of the curves in its prior
     with solver_class(*vertices_and_bases, k=k, **params) as solver:
         weights = hints.weights or (1.0,) * len(hints.curves)
         solver.add_curves([(pm, pn, w) for (pm, pn), w in zip(hints.curves, weights, strict=True)])
