@@ -144,6 +144,13 @@ SIDE_CURVES = 1
 with one curve from the head to a foot on FAUST 000 -> 011 the prior from its two endpoints mapped one arm onto
 the other (0.26 of sqrt(area)); the curve's side took it to 0.03 (experiments/curve_side.py). With two curves the
 four endpoints already tell left from right and the sides made the map no better."""
+# chosen in docs/accuracy.md#one-curve-that-cannot-flip
+SIDE_AGREEMENT = 0.5
+"""The prior with the curves' sides is kept only where they agree under it (:func:`sides_agree`): where a curve runs
+round a limb on one shape and the other way round on the other, its sides disagree under any map (FAUST-5k 000 ->
+011, two of three endpoint draws: correlation -0.2 and -0.35 under the sided prior; 0.85-0.95 where they agree), and
+the prior from the endpoints alone is used."""
+SIDE_ROWS = 500  # target vertices at which the sides are compared
 T = TypeVar("T")
 Landmarks = frozenset[tuple[int, ...]]  # the curves' endpoint pairs (vertex on M, vertex on N)
 
@@ -412,9 +419,13 @@ class CombinedMapSolver(CurveMapSolver):
         self._prior = (landmarks, _or_none(lambda: self._landmark_maps(landmarks)))
 
     def _landmark_maps(self, inputs: PriorInputs, wanted: Callable[[], bool] = lambda: True) -> FunctionalMaps:
-        return landmark_maps(
-            self.basis_M, self.basis_N, _pairs(inputs.landmarks), wanted=wanted, extra=self._curve_sides(inputs)
-        )
+        """NO17's maps from the endpoints, with the sided curves' sides where these agree under the map."""
+        pairs, sides = _pairs(inputs.landmarks), self._curve_sides(inputs)
+        if sides is not None:
+            maps = landmark_maps(self.basis_M, self.basis_N, pairs, wanted=wanted, extra=sides)
+            if sides_agree(maps.C_MN, self.basis_M, self.basis_N, sides):
+                return maps
+        return landmark_maps(self.basis_M, self.basis_N, pairs, wanted=wanted)
 
     def _curve_sides(self, inputs: PriorInputs) -> tuple[np.ndarray, np.ndarray] | None:
         """Each sided curve's :func:`curve_side` on both shapes (vertices x curves), or None."""
@@ -526,6 +537,21 @@ class CombinedMapSolver(CurveMapSolver):
             f"{reason}; the shapes' spectra differ (not near-isometric), so its frequencies beyond the first "
             f"{block} are scaled by {factor:g}",
         )
+
+
+def sides_agree(C_MN: np.ndarray, basis_M: Basis, basis_N: Basis, sides: tuple[np.ndarray, np.ndarray]) -> bool:
+    """Whether every curve's side on N correlates with its side on M carried by ``C_MN``'s pointwise map (nearest
+    neighbours in the spectral embedding, at ``SIDE_ROWS`` vertices of N) by at least ``SIDE_AGREEMENT``."""
+    k_N, k_M = C_MN.shape
+    rows = np.unique(np.linspace(0, basis_N.n_vertices - 1, SIDE_ROWS).astype(np.int64))
+    embedded = basis_M.evecs[:, :k_M] @ C_MN.T
+    queries = basis_N.evecs[rows, :k_N]
+    nearest = np.argmin(np.sum(embedded**2, axis=1)[None, :] - 2 * queries @ embedded.T, axis=1)
+    side_M, side_N = sides
+    for carried, wanted in zip(side_M[nearest].T, side_N[rows].T, strict=True):
+        if np.std(carried) == 0 or np.std(wanted) == 0 or np.corrcoef(carried, wanted)[0, 1] < SIDE_AGREEMENT:
+            return False
+    return True
 
 
 def _pairs(landmarks: Landmarks) -> np.ndarray:
