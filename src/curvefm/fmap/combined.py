@@ -139,11 +139,12 @@ suite 0.0643 -> 0.0609 (0.5: 0.0599; cut off at 50 x 50: 0.0652), on the pairs o
 (cat -> lion, wolf -> dog, one of cat -> dog) 0.0493 -> 0.0324 (block alone 0.0396); FAUST and TOSCA within classes
 lose with any damping (FAUST 0.0088 -> 0.0103 at 0.25)."""
 # chosen in docs/accuracy.md#one-curve-that-cannot-flip
-SIDE_CURVES = 1
+SIDE_CURVES = 2
 """Up to this many curves the landmark prior also preserves each curve's side (:func:`curvefm.geometry.curve_side`):
 with one curve from the head to a foot on FAUST 000 -> 011 the prior from its two endpoints mapped one arm onto
-the other (0.26 of sqrt(area)); the curve's side took it to 0.03 (experiments/curve_side.py). With two curves the
-four endpoints already tell left from right and the sides made the map no better."""
+the other (0.26 of sqrt(area)); the curve's side took it to 0.03 (experiments/curve_side.py, three endpoint draws
+on three suite and four held-out pairs: mean 0.062 -> 0.036). With two curves the sides took the mean from 0.0368
+to 0.0361 (cat -> lion 0.049 -> 0.046; one run of 21 worse, by 1%); from 10 curves on they are left out."""
 # chosen in docs/accuracy.md#one-curve-that-cannot-flip
 SIDE_AGREEMENT = 0.5
 """The prior with the curves' sides is kept only where they agree under it (:func:`sides_agree`): where a curve runs
