@@ -39,6 +39,12 @@ map is solved with its own weights, ``FULL_SIZE_ALPHA`` and ``FULL_SIZE_KERNEL_W
 kernels: the curves now determine the higher frequencies; experiments/full_size_weights.py). The solver keeps the
 curve and kernel terms' sums apart, so the weights change with the number of curves at no cost.
 
+Left and right. Every descriptor above is intrinsic and cannot tell a shape from its mirror image; with one curve
+from a person's head to a foot the prior mapped one arm onto the other. Up to ``SIDE_CURVES`` curves the prior also
+preserves each curve's side (:func:`curvefm.geometry.curve_side`, whose sign the orientation sets) as one more
+descriptor, where the sides agree under its map (``SIDE_AGREEMENT``); it is computed with the prior, never in an
+edit (docs/accuracy.md#one-curve-that-cannot-flip).
+
 Strongly non-isometric pairs. Wave kernel signatures, kernel maps and NO17 assume a near-isometry; where the shapes
 are far from one (TOSCA's horse -> cat) they pull the map away from what the curves say, and from
 ``CURVES_ALONE_FROM`` curves on the pure curve energy is the better map. The only measure of isometry a user's input
@@ -159,7 +165,7 @@ Landmarks = frozenset[tuple[int, ...]]  # the curves' endpoint pairs (vertex on 
 @dataclass(frozen=True)
 class PriorInputs:
     """What a landmark prior is computed from: the curves' endpoints and the paths of the curves whose sides it
-    preserves (``(path_M, path_N)`` as int32 bytes; none from ``SIDE_CURVES`` curves on)."""
+    preserves (``(path_M, path_N)`` as int32 bytes; none with more than the solver's ``side_curves`` curves)."""
 
     landmarks: Landmarks
     sided: tuple[tuple[bytes, bytes], ...] = ()
@@ -270,7 +276,8 @@ class CombinedMapSolver(CurveMapSolver):
     ``interactive`` solver given a ``prior_executor`` computes it there (after ``PRIOR_DELAY_S`` without a new
     curve), one job at a time, when its maps are read; until it lands the maps are solved with the last prior
     whose landmarks are all still there (or none), and :attr:`prior_pending` says so. Without an executor it is
-    computed in the solve.
+    computed in the solve. Given both ``meshes``, up to ``side_curves`` curves the prior also preserves each
+    curve's side (``SIDE_CURVES``), which tells a shape from its mirror image.
     """
 
     PRODUCTS = 6  # the curve term's three products, then the kernel term's (unweighted)
