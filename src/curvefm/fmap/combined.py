@@ -40,6 +40,12 @@ map is solved with its own weights, ``FULL_SIZE_ALPHA`` and ``FULL_SIZE_KERNEL_W
 kernels: the curves now determine the higher frequencies; experiments/full_size_weights.py). The solver keeps the
 curve and kernel terms' sums apart, so the weights change with the number of curves at no cost.
 
+Left and right. Every descriptor above is intrinsic and cannot tell a shape from its mirror image; with one curve
+from a person's head to a foot the prior mapped one arm onto the other. Up to ``SIDE_CURVES`` curves the prior also
+preserves each curve's side (:func:`curvefm.geometry.curve_side`, whose sign the orientation sets) as one more
+descriptor, where the sides agree under its map (``SIDE_AGREEMENT``); it is computed with the prior, never in an
+edit (docs/accuracy.md#one-curve-that-cannot-flip).
+
 Strongly non-isometric pairs. Wave kernel signatures, kernel maps and NO17 assume a near-isometry; where the shapes
 are far from one (TOSCA's horse -> cat) they pull the map away from what the curves say, and from
 ``CURVES_ALONE_FROM`` curves on the pure curve energy is the better map. The only measure of isometry a user's input
@@ -58,6 +64,7 @@ import logging
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor, Future, wait
+from dataclasses import dataclass
 from typing import Any, TypeVar, cast
 
 import numpy as np
@@ -68,6 +75,7 @@ from curvefm.fmap.column_solve import Prior
 from curvefm.fmap.landmark_prior import NO17Settings, NoLongerWanted, landmark_maps
 from curvefm.fmap.maps import EffectiveSolve, FunctionalMaps, curve_endpoints
 from curvefm.fmap.solver import CurveMapSolver, CurveTerm, basis_digest, cross_products
+from curvefm.geometry import Mesh, curve_side
 from curvefm.spectral import Basis, energy_filters, normalised, wave_kernel_signature
 
 # Chosen in docs/decisions.md#the-combined-energys-weights (the sweep in experiments/combined_weights.py):
@@ -150,8 +158,36 @@ suite 0.0643 -> 0.0609 (0.5: 0.0599; cut off at 50 x 50: 0.0652), on the pairs o
 0.0709); on the seven runs it still governs once strongly non-isometric pairs fall back to the curve energy
 (cat -> lion, wolf -> dog, one of cat -> dog) 0.0493 -> 0.0324 (block alone 0.0396); FAUST and TOSCA within classes
 lose with any damping (FAUST 0.0088 -> 0.0103 at 0.25)."""
+# chosen in docs/accuracy.md#one-curve-that-cannot-flip
+SIDE_CURVES = 2
+"""Up to this many curves the landmark prior also preserves each curve's side (:func:`curvefm.geometry.curve_side`):
+with one curve from the head to a foot on FAUST 000 -> 011 the prior from its two endpoints mapped one arm onto
+the other (0.26 of sqrt(area)); the curve's side took it to 0.03 (experiments/curve_side.py, three endpoint draws
+on three suite and four held-out pairs: mean 0.062 -> 0.036). With two curves the sides took the mean from 0.0368
+to 0.0361 (cat -> lion 0.049 -> 0.046; one run of 21 worse, by 1%); from 10 curves on they are left out."""
+# chosen in docs/accuracy.md#one-curve-that-cannot-flip
+SIDE_AGREEMENT = 0.5
+"""The prior with the curves' sides is kept only where they agree under it (:func:`sides_agree`): where a curve runs
+round a limb on one shape and the other way round on the other, its sides disagree under any map (FAUST-5k 000 ->
+011, two of three endpoint draws: correlation -0.2 and -0.35 under the sided prior; 0.85-0.95 where they agree), and
+the prior from the endpoints alone is used."""
+SIDE_ROWS = 500  # target vertices at which the sides are compared
 T = TypeVar("T")
 Landmarks = frozenset[tuple[int, ...]]  # the curves' endpoint pairs (vertex on M, vertex on N)
+
+
+@dataclass(frozen=True)
+class PriorInputs:
+    """What a landmark prior is computed from: the curves' endpoints and the paths of the curves whose sides it
+    preserves (``(path_M, path_N)`` as int32 bytes; none with more than the solver's ``side_curves`` curves)."""
+
+    landmarks: Landmarks
+    sided: tuple[tuple[bytes, bytes], ...] = ()
+
+    def paths(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        return [(np.frombuffer(path_M, np.int32), np.frombuffer(path_N, np.int32)) for path_M, path_N in self.sided]
+
+
 SUPERSEDED = object()  # what a prior job returns when newer endpoints were asked for while it waited
 ENERGIES = 20
 SIGMA = 0.06
@@ -254,7 +290,8 @@ class CombinedMapSolver(CurveMapSolver):
     ``interactive`` solver given a ``prior_executor`` computes it there (after ``PRIOR_DELAY_S`` without a new
     curve), one job at a time, when its maps are read; until it lands the maps are solved with the last prior
     whose landmarks are all still there (or none), and :attr:`prior_pending` says so. Without an executor it is
-    computed in the solve.
+    computed in the solve. Given both ``meshes``, up to ``side_curves`` curves the prior also preserves each
+    curve's side (``SIDE_CURVES``), which tells a shape from its mirror image.
     """
 
     PRODUCTS = 6  # the curve term's three products, then the kernel term's (unweighted)
@@ -273,6 +310,8 @@ class CombinedMapSolver(CurveMapSolver):
         full_size_kernel_weight: float = FULL_SIZE_KERNEL_WEIGHT,
         non_isometric_spectra: float = NON_ISOMETRIC_SPECTRA,
         prior_executor: Executor | None = None,
+        meshes: tuple[Mesh, Mesh] | None = None,
+        side_curves: int = SIDE_CURVES,
         **kwargs: Any,
     ) -> None:
         super().__init__(*args, alpha=alpha, **kwargs)  # type: ignore[misc]  # args: the shapes and bases, k
@@ -283,10 +322,11 @@ class CombinedMapSolver(CurveMapSolver):
         self.damps_high_frequencies = spectral_mismatch(self.basis_M, self.basis_N) > non_isometric_spectra
         self._signatures = self.descriptor_weight * signature_products(self.basis_M, self.basis_N)
         self._filters_M, self._filters_N = kernel_filters(self.basis_M.evals), kernel_filters(self.basis_N.evals)
-        self._prior_executor = prior_executor
-        self._prior: tuple[Landmarks, FunctionalMaps | None] | None = None  # (landmark pairs, NO17's maps, if any)
-        self._prior_job: tuple[Landmarks, Future[FunctionalMaps | object]] | None = None
-        self._wanted: Landmarks = frozenset()  # the endpoints whose prior was last asked for
+        self._prior_executor, self.meshes = prior_executor, meshes
+        self.side_curves = side_curves if meshes is not None else 0
+        self._prior: tuple[PriorInputs, FunctionalMaps | None] | None = None  # (its inputs, NO17's maps, if any)
+        self._prior_job: tuple[PriorInputs, Future[FunctionalMaps | object]] | None = None
+        self._wanted = PriorInputs(frozenset())  # the inputs whose prior was last asked for
         self.on_prior: Callable[[], None] | None = None
         """Called (on the prior's thread) when a prior computed in the background lands: the maps will change."""
 
@@ -347,7 +387,7 @@ class CombinedMapSolver(CurveMapSolver):
 
     def _solve(self) -> None:
         if self._prior_job is not None:  # a running job for other endpoints gives up now, not at the next read
-            self._wanted = self._landmarks()
+            self._wanted = self._prior_inputs()
         super()._solve()
 
     # -- the landmark prior -----------------------------------------------------------------------------
@@ -364,11 +404,11 @@ class CombinedMapSolver(CurveMapSolver):
     @property
     def prior_pending(self) -> bool:
         """Whether the maps will change once the prior for the current curves' endpoints lands."""
-        return self.prior_weight > 0 and bool(self.curves) and not self._prior_matches(self._landmarks())
+        return self.prior_weight > 0 and bool(self.curves) and not self._prior_matches(self._prior_inputs())
 
     def settle(self) -> None:
         """Bring the prior up to date with the curves now, waiting for (or computing) it: for the final maps."""
-        landmarks = self._landmarks()
+        landmarks = self._prior_inputs()
         if self.prior_weight <= 0 or not self.curves or self._prior_matches(landmarks):
             return
         if self._prior_job is not None:
@@ -377,10 +417,12 @@ class CombinedMapSolver(CurveMapSolver):
             self._compute_prior(landmarks)
         self._stale = {"MN", "NM"}
 
-    def _landmarks(self) -> Landmarks:
-        return frozenset(map(tuple, curve_endpoints([(t.path_M, t.path_N) for t in self.curves.values()]).tolist()))
+    def _prior_inputs(self) -> PriorInputs:
+        paths = [(t.path_M, t.path_N) for t in self.curves.values()]
+        sided = tuple((M.tobytes(), N.tobytes()) for M, N in paths) if len(paths) <= self.side_curves else ()
+        return PriorInputs(frozenset(map(tuple, curve_endpoints(paths).tolist())), sided)
 
-    def _prior_matches(self, landmarks: Landmarks) -> bool:
+    def _prior_matches(self, landmarks: PriorInputs) -> bool:
         self._adopt_finished_prior()
         return self._prior is not None and self._prior[0] == landmarks
 
@@ -390,7 +432,7 @@ class CombinedMapSolver(CurveMapSolver):
         landmarks, job = self._prior_job
         self._prior_job = None
         maps = _or_none(job.result)
-        current = self._landmarks()
+        current = self._prior_inputs()
         if self._prior is not None and self._prior[0] == current:
             return
         if maps is SUPERSEDED:  # the maps were solved without it already: no read would ask for the current one
@@ -403,10 +445,10 @@ class CombinedMapSolver(CurveMapSolver):
     def _priors(self) -> tuple[Prior | None, Prior | None]:
         if self.prior_weight <= 0 or not self.curves:
             return None, None
-        landmarks = self._landmarks()
+        landmarks = self._prior_inputs()
         if not self._prior_matches(landmarks):
             self._start_prior(landmarks)
-        if self._prior is None or self._prior[1] is None or not self._prior[0] <= landmarks:
+        if self._prior is None or self._prior[1] is None or not self._prior[0].landmarks <= landmarks.landmarks:
             return None, None
         G_M, G_N, _ = self.normal_equations()
         weight = self.prior_weight * (ONE_CURVE_PRIOR_FACTOR if len(self.curves) == 1 else 1.0)
@@ -414,10 +456,30 @@ class CombinedMapSolver(CurveMapSolver):
         maps = self._prior[1]
         return Prior(maps.C_MN, weight), Prior(maps.C_NM, weight)
 
-    def _compute_prior(self, landmarks: Landmarks) -> None:
-        self._prior = (landmarks, _or_none(lambda: landmark_maps(self.basis_M, self.basis_N, _pairs(landmarks))))
+    def _compute_prior(self, landmarks: PriorInputs) -> None:
+        self._prior = (landmarks, _or_none(lambda: self._landmark_maps(landmarks)))
 
-    def _start_prior(self, landmarks: Landmarks) -> None:
+    def _landmark_maps(self, inputs: PriorInputs, wanted: Callable[[], bool] = lambda: True) -> FunctionalMaps:
+        """NO17's maps from the endpoints, with the sided curves' sides where these agree under the map."""
+        pairs, sides = _pairs(inputs.landmarks), self._curve_sides(inputs)
+        if sides is not None:
+            maps = landmark_maps(self.basis_M, self.basis_N, pairs, wanted=wanted, extra=sides)
+            if sides_agree(maps.C_MN, self.basis_M, self.basis_N, sides):
+                return maps
+        return landmark_maps(self.basis_M, self.basis_N, pairs, wanted=wanted)
+
+    def _curve_sides(self, inputs: PriorInputs) -> tuple[np.ndarray, np.ndarray] | None:
+        """Each sided curve's :func:`curve_side` on both shapes (vertices x curves), or None."""
+        if self.meshes is None or not inputs.sided:
+            return None
+        mesh_M, mesh_N = self.meshes
+        paths = inputs.paths()
+        return (
+            np.column_stack([curve_side(mesh_M, path_M) for path_M, _ in paths]),
+            np.column_stack([curve_side(mesh_N, path_N) for _, path_N in paths]),
+        )
+
+    def _start_prior(self, landmarks: PriorInputs) -> None:
         if self._prior_executor is None or not self.interactive:
             self._compute_prior(landmarks)
         else:
@@ -438,14 +500,13 @@ class CombinedMapSolver(CurveMapSolver):
         ):
             self.on_prior()
 
-    def _quiet_prior(self, landmarks: Landmarks) -> FunctionalMaps | object:
+    def _quiet_prior(self, landmarks: PriorInputs) -> FunctionalMaps | object:
         """The prior, once the session has been left alone for ``PRIOR_DELAY_S``: while a person clicks on, each
         job finds newer endpoints wanted and returns :data:`SUPERSEDED`, at once or, if the click came while it
         ran, at its next step (a few tenths of a second), so the clicks keep the cores."""
         time.sleep(PRIOR_DELAY_S)
         try:
-            pairs = _pairs(landmarks)
-            return landmark_maps(self.basis_M, self.basis_N, pairs, wanted=lambda: self._wanted == landmarks)
+            return self._landmark_maps(landmarks, wanted=lambda: self._wanted == landmarks)
         except NoLongerWanted:
             return SUPERSEDED
 
@@ -527,6 +588,21 @@ class CombinedMapSolver(CurveMapSolver):
             f"{reason}; the shapes' spectra differ (not near-isometric), so its frequencies beyond the first "
             f"{block} are scaled by {factor:g}",
         )
+
+
+def sides_agree(C_MN: np.ndarray, basis_M: Basis, basis_N: Basis, sides: tuple[np.ndarray, np.ndarray]) -> bool:
+    """Whether every curve's side on N correlates with its side on M carried by ``C_MN``'s pointwise map (nearest
+    neighbours in the spectral embedding, at ``SIDE_ROWS`` vertices of N) by at least ``SIDE_AGREEMENT``."""
+    k_N, k_M = C_MN.shape
+    rows = np.unique(np.linspace(0, basis_N.n_vertices - 1, SIDE_ROWS).astype(np.int64))
+    embedded = basis_M.evecs[:, :k_M] @ C_MN.T
+    queries = basis_N.evecs[rows, :k_N]
+    nearest = np.argmin(np.sum(embedded**2, axis=1)[None, :] - 2 * queries @ embedded.T, axis=1)
+    side_M, side_N = sides
+    for carried, wanted in zip(side_M[nearest].T, side_N[rows].T, strict=True):
+        if np.std(carried) == 0 or np.std(wanted) == 0 or np.corrcoef(carried, wanted)[0, 1] < SIDE_AGREEMENT:
+            return False
+    return True
 
 
 def _pairs(landmarks: Landmarks) -> np.ndarray:

@@ -122,15 +122,27 @@ def landmark_maps(
     landmarks: np.ndarray,
     settings: NO17Settings = NO17Settings(),
     wanted: Callable[[], bool] = lambda: True,
+    extra: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> FunctionalMaps:
     """NO17's maps from corresponding ``landmarks`` (m x 2 internal vertex ids), with cached descriptor parts.
 
+    ``extra``: more corresponding descriptors (vertices x d on M and on N, such as the sides of a curve,
+    :func:`curvefm.geometry.curve_side`), added with unit norm each (not cached).
     Raises :class:`NoLongerWanted` as soon as ``wanted()`` turns false (parts computed until then stay cached).
     """
     k = min(settings.k, basis_M.k, basis_N.k)
     settings = replace(settings, k=k)
-    sides = [_descriptors(basis, landmarks[:, side], settings, wanted) for side, basis in enumerate((basis_M, basis_N))]
+    bases = (basis_M, basis_N)
+    sides = [_descriptors(basis, landmarks[:, side], settings, wanted) for side, basis in enumerate(bases)]
+    if extra is not None:
+        _check(wanted)
+        added = [descriptor_part(basis, normalised(basis, f), k) for basis, f in zip(bases, extra, strict=True)]
+        sides = [_joined(part, more) for part, more in zip(sides, added, strict=True)]
     return no17_maps(sides[0], sides[1], basis_M, basis_N, settings, wanted)
+
+
+def _joined(*parts: DescriptorPart) -> DescriptorPart:
+    return DescriptorPart(np.hstack([p.coefficients for p in parts]), np.concatenate([p.operators for p in parts]))
 
 
 def _check(wanted: Callable[[], bool]) -> None:
@@ -147,7 +159,7 @@ def _descriptors(
     for key in [None] + [int(vertex) for vertex in landmarks]:
         _check(wanted)
         parts.append(_PARTS.get((digest, key, settings), partial(_part, basis, key, settings)))
-    return DescriptorPart(np.hstack([p.coefficients for p in parts]), np.concatenate([p.operators for p in parts]))
+    return _joined(*parts)
 
 
 def _part(basis: Basis, landmark: int | None, settings: NO17Settings) -> DescriptorPart:

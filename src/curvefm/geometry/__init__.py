@@ -1,8 +1,10 @@
 """Triangle meshes and what is computed on their surface alone: the :class:`Mesh` type (internal and file
 vertex ids), validation, one reader/writer per file format, Laplace-Beltrami operators, graph paths,
-geodesic distances, farthest-point sampling, decimation, display copies of big meshes and texture coordinates.
+geodesic distances, the side of a curve a point lies on, farthest-point sampling, decimation, display copies
+of big meshes and texture coordinates.
 """
 
+from curvefm.geometry.curve_side import curve_side
 from curvefm.geometry.decimation import closest_point_weights, decimate
 from curvefm.geometry.display import DisplayMesh, display_mesh
 from curvefm.geometry.geodesics import (
@@ -38,6 +40,7 @@ __all__ = [
     "checkerboard_image",
     "checked_ids",
     "closest_point_weights",
+    "curve_side",
     "cotangent_laplacian",
     "decimate",
     "display_mesh",

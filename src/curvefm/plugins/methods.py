@@ -33,6 +33,7 @@ from curvefm.fmap import (
     KERNEL_POINTS,
     NON_ISOMETRIC_DISTORTION,
     NON_ISOMETRIC_SPECTRA,
+    SIDE_CURVES,
     CombinedMapSolver,
     CurveMapSolver,
     FunctionalMaps,
@@ -87,6 +88,13 @@ class CombinedParams(CurvesParams):
         "default): until the curves' total length on the unit-area source reaches sqrt(k / pi), where they sample "
         "every frequency of the map. Below, its higher frequencies are not determined and would blur the pointwise map",
     )
+    side_curves: int = Field(
+        SIDE_CURVES,
+        ge=0,
+        le=100_000,
+        description="up to this many curves the landmark prior also keeps each curve's side (left or right of the "
+        "curve, which tells a shape from its mirror image); 0: never",
+    )
     full_size_alpha: float = Field(
         FULL_SIZE_ALPHA, ge=0, description="weight of Laplacian commutativity once the whole map is handed out"
     )
@@ -134,8 +142,9 @@ def _solve_curves(
         raise InvalidInput("the curve-based methods need at least one pair of curves")
     k = min(pair.basis_M.k, pair.basis_N.k)
     vertices_and_bases = (pair.mesh_M.vertices, pair.basis_M, pair.mesh_N.vertices, pair.basis_N)
-    if solver_class is CombinedMapSolver:
-        params = params | {"source_area": pair.mesh_M.area}  # for the size switch (full_size_length)
+    if issubclass(solver_class, CombinedMapSolver):
+        # the source's area for the size switch (full_size_length), the meshes for the sides of the curves in its prior
+        params = {**params, "source_area": pair.mesh_M.area, "meshes": pair.meshes}
     with solver_class(*vertices_and_bases, k=k, **params) as solver:
         weights = hints.weights or (1.0,) * len(hints.curves)
         solver.add_curves([(pm, pn, w) for (pm, pn), w in zip(hints.curves, weights, strict=True)])

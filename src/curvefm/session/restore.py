@@ -130,7 +130,7 @@ def build_solver(
     solver_class = energy_solver(record, pair)
     background: dict[str, Any] = {}
     if solver_class is CombinedMapSolver and landmark_prior:
-        background = {"prior_executor": prior_executor, "source_area": pair.mesh_M.area}
+        background = {"prior_executor": prior_executor, "source_area": pair.mesh_M.area, "meshes": pair.meshes}
     elif solver_class is CombinedMapSolver:
         background = {"prior_weight": 0.0, "source_area": pair.mesh_M.area}
     solver = solver_class(
