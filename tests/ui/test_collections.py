@@ -212,6 +212,7 @@ def test_an_annotator_finds_their_work_and_a_manager_grants_a_role(browser, serv
     annotator.wait_for_selector("#collection-roles:has-text('ann annotator')")
     assert annotator.text_content("#collection-roles") == "Roles: tester owner · mia manager · ann annotator"
     assert annotator.is_hidden("#grant-role") and annotator.is_disabled("#add-members")
+    assert annotator.is_hidden("#assign-member")  # assigning by hand is the managers' too
     annotator.click('#member-list li[data-member-id="m1"] button[data-action="open"]')
     wait_for_current(annotator, "t1")
     assert not annotator.evaluate("document.body.classList.contains('read-only')")  # a private member, theirs
