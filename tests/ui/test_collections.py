@@ -212,6 +212,7 @@ def test_an_annotator_finds_their_work_and_a_manager_grants_a_role(browser, serv
     annotator.wait_for_selector("#collection-roles:has-text('ann annotator')")
     assert annotator.text_content("#collection-roles") == "Roles: tester owner · mia manager · ann annotator"
     assert annotator.is_hidden("#grant-role") and annotator.is_disabled("#add-members")
+    assert annotator.is_hidden("#assign-member")  # assigning by hand is the managers' too
     annotator.click('#member-list li[data-member-id="m1"] button[data-action="open"]')
     wait_for_current(annotator, "t1")
     assert not annotator.evaluate("document.body.classList.contains('read-only')")  # a private member, theirs
@@ -272,4 +273,60 @@ def test_a_member_is_submitted_sent_back_and_accepted_in_the_panel(browser, serv
     page.wait_for_selector(f'{row} .review[data-review="accepted"]')
     assert page.is_hidden(f'{row} button[data-action="submit"]')
     assert [r["state"] for r in api.client.get(f"{base}/reviews").json()] == ["accepted"]
+    assert not errors, errors
+
+
+def test_a_manager_assigns_a_member_by_hand_asks_a_second_annotation_and_sees_agreement(browser, served):
+    """The owner assigns m1 to one annotator with the per-member control, asks another for a further annotation of
+    it (both land in the API), and, once both annotations have curves, the Agreement section lists m1 with the
+    report's distance; before that it shows its empty state."""
+    api, view = served
+    template, shape = view["collection"]["template"], view["members"][0]["shape"]
+    body = {"name": "agreed", "template": template, "curves": TEMPLATE_CURVES, "members": [shape], "k": K}
+    made = api.client.post("/collections", json=body).raise_for_status().json()
+    collection_id, base = made["collection"]["id"], f"/collections/{made['collection']['id']}"
+    for name in ("ann", "bo"):
+        add_user(api.data_dir, name)
+        api.client.put(f"{base}/roles/{name}", json={"role": "annotator"}).raise_for_status()
+    page = browser.new_context(viewport=VIEWPORT).new_page()
+    errors = []
+    page.on("pageerror", lambda error: errors.append(str(error)))
+    open_session(page, api.url, made["members"][0]["session"], token=api.token)
+    page.click("#collections-panel summary")
+    page.select_option("#collection-select", collection_id)
+    page.wait_for_selector("#assign-member:not([hidden])")
+    page.wait_for_selector('#assign-user-select option[value="bo"]', state="attached")
+
+    page.select_option("#assign-member-select", "m1")
+    page.select_option("#assign-user-select", "ann")
+    page.click("#assign-member-button")
+    page.wait_for_selector('#member-list li[data-member-id="m1"]:has-text("· ann")')
+    assert [(m["member"], m["assignee"]) for m in api.client.get(f"{base}/assignments").json()["members"]] == [
+        ("m1", "ann")
+    ]
+    page.select_option("#assign-user-select", "bo")
+    page.click("#ask-annotation")
+    page.wait_for_selector(".toast:has-text('bo now annotates member m1')")
+    annotations = api.client.get(f"{base}/annotations").json()
+    assert [(a["annotator"], a["further"]) for a in annotations] == [("ann", False), ("bo", True)]
+
+    page.click("#show-agreement")
+    page.wait_for_selector("#agreement-summary:has-text('no member is annotated twice')")
+    for number, curve in enumerate(TEMPLATE_CURVES, 1):  # both annotate m1; bo's t2 ends elsewhere
+        answer = {"template_curve": f"t{number}", "target": curve["waypoints"]}
+        api.client.post(f"{base}/members/m1/curves", json=answer).raise_for_status()
+        other = {**answer, "target": [curve["waypoints"][0], 700]} if number == 2 else answer
+        api.client.post(f"{base}/members/m1/curves", params={"annotator": "bo"}, json=other).raise_for_status()
+    page.click("#show-agreement")
+    row = '#agreement-list li[data-member="m1"]'
+    page.wait_for_selector(row)
+    report = api.client.get(f"{base}/agreement").raise_for_status().json()
+    (entry,) = report["members"]
+    assert f"{entry['map_distance']:.4f}" in page.text_content(row)
+    assert "ann/bo" in page.text_content(row)
+    assert page.evaluate(f"document.querySelector('{row}').classList.contains('flagged')") == entry["flagged"]
+    page.locator("#collections-panel").screenshot(path=str(ARTIFACTS / "12-collection-assign-and-agreement.png"))
+    assert page.text_content("#agreement-summary").startswith(
+        f"Agreement: mean map distance {report['map_distance']:.4f}"
+    )
     assert not errors, errors

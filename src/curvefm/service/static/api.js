@@ -210,6 +210,15 @@ export const api = {
   /** Spread the members without an annotator among ``annotators`` (user names), the fewest first. */
   assign: (id, annotators, members) =>
     request("POST", `/collections/${enc(id)}/assign`, { json: { annotators, ...(members && { members }) } }),
+  /** Assign one member to an annotator (user null: to no one); resolves to the member's progress. */
+  assignMember: (id, member, user) =>
+    request("PUT", `/collections/${enc(id)}/members/${enc(member)}/assignee`, { json: { user } }),
+  /** Ask `user` for a further, independent annotation of a member (double annotation). */
+  addAnnotation: (id, member, user) =>
+    request("POST", `/collections/${enc(id)}/members/${enc(member)}/annotations`, { json: { user } }),
+  /** Agreement between annotators: per member annotated twice or more its mean map distance, flagged above the
+   * threshold (see AgreementReport). */
+  agreement: (id) => request("GET", `/collections/${enc(id)}/agreement`),
   /** The members assigned to the user in every collection, those not done first. */
   myWork: () => request("GET", "/me/work"),
   archiveUrl: (id, run, kind) => `/collections/${enc(id)}/runs/${enc(run)}/archive.${kind}`,

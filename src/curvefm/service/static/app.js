@@ -5,12 +5,15 @@
 // tests and benchmarks, and starts. The state lives in store.js; views/ draws it; api.js talks to the service.
 import {
   addMembers,
+  askAnnotation,
   assignEvenly,
+  assignMember,
   chooseCollection,
   createCollection,
   grantRole,
   openWork,
   runReady,
+  showAgreementReport,
 } from "./controllers/collections.js";
 import { watchConnection } from "./controllers/connection.js";
 import {
@@ -91,6 +94,9 @@ function bindControls() {
   on("member-list", "click", clickMemberList);
   on("grant-role-button", "click", grantRole);
   on("assign-evenly", "click", assignEvenly);
+  on("assign-member-button", "click", assignMember);
+  on("ask-annotation", "click", askAnnotation);
+  on("show-agreement", "click", showAgreementReport);
   on("my-work", "click", (event) => event.target.closest("li") && openWork(event.target.closest("li")));
   on("template-curves", "click", clickTemplateList);
   on("guide-skip", "click", skip);

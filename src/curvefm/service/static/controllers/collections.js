@@ -1,10 +1,18 @@
 // What the Collections panel does: list the collections, open one (its members' progress is polled while their
 // bases compute), make the open session's curves a new collection's template, add members from the shape library,
-// remove a member (after asking), and run the ready members' refinements as one batch whose progress is polled until
+// remove a member (after asking), assign members to annotators (by hand or evenly), ask for a further annotation
+// of a member, show the agreement between annotators, and run the ready members' refinements as one batch whose progress is polled until
 // its archive can be downloaded.
 import { api, sleep } from "../api.js";
 import { setCollection, state } from "../store.js";
-import { showCollection, showCollectionList, showMyWork, showRoles, showRunLinks } from "../views/collections.js";
+import {
+  showAgreement,
+  showCollection,
+  showCollectionList,
+  showMyWork,
+  showRoles,
+  showRunLinks,
+} from "../views/collections.js";
 import { showCurves, showPending } from "../views/curves.js";
 import { $ } from "../views/dom.js";
 import { pluginChoice } from "../views/forms.js";
@@ -51,6 +59,45 @@ export async function assignEvenly() {
   }
 }
 
+/** "Assign": give the chosen member to the chosen user ("no one": unassign it). */
+export async function assignMember() {
+  const id = state.collection.collection.id;
+  const member = $("assign-member-select").value;
+  const user = $("assign-user-select").value || null;
+  if (!member) return toast("The collection has no member to assign.", "error");
+  try {
+    await api.assignMember(id, member, user);
+    toast(user ? `Member ${member} assigned to ${user}.` : `Member ${member} assigned to no one.`);
+    await refreshCollection();
+    showMyWork(await api.myWork());
+  } catch (error) {
+    report(error, "The member could not be assigned");
+  }
+}
+
+/** "Ask for another annotation": the chosen user annotates the chosen member once more, independently. */
+export async function askAnnotation() {
+  const id = state.collection.collection.id;
+  const member = $("assign-member-select").value;
+  const user = $("assign-user-select").value;
+  if (!member || !user) return toast("Choose a member and the user to annotate it again.", "error");
+  try {
+    await api.addAnnotation(id, member, user);
+    toast(`${user} now annotates member ${member} too, in a session of their own.`);
+  } catch (error) {
+    report(error, "The further annotation could not be asked for");
+  }
+}
+
+/** "Agreement": how far apart the annotations of the members annotated twice or more are. */
+export async function showAgreementReport() {
+  try {
+    showAgreement(await api.agreement(state.collection.collection.id));
+  } catch (error) {
+    report(error, "The agreement could not be computed");
+  }
+}
+
 /** A "My work" entry: open its collection. */
 export async function openWork(entry) {
   await chooseCollection(entry.dataset.collection);
@@ -78,6 +125,7 @@ export async function openCollection(id) {
   $("collection-select").value = id;
   $("run-progress").replaceChildren();
   showRunLinks(null);
+  showAgreement(null);
   showCollection();
   showRoles(await api.roles(id));
   const newest = state.collection.collection.runs.at(-1);

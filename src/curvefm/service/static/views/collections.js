@@ -49,6 +49,7 @@ export function showCollection() {
   $("collection-progress").textContent =
     `${done} of ${members.length} members done (every template curve answered) · bases ready ${ready}/${members.length}`;
   $("member-list").replaceChildren(...members.map(memberItem));
+  showMemberSelect(members);
   $("run-all").disabled = !members.some(hasCurves);
   $("add-members").disabled = !mayEditCollection();
   showGuide();
@@ -69,10 +70,51 @@ function mayEditCollection() {
   return state.collection.may.includes("edit");
 }
 
-/** Who holds which role (GET .../roles); the grant form shows to those who may grant. */
+/** Who holds which role (GET .../roles); the grant and assign forms show to those who may grant. The assign form
+ * offers those who may annotate. */
 export function showRoles(roles) {
   $("collection-roles").textContent = `Roles: ${roles.map((r) => `${r.user} ${r.role}`).join(" · ")}`;
-  $("grant-role").hidden = !state.collection?.may.includes("manage");
+  const manages = Boolean(state.collection?.may.includes("manage"));
+  $("grant-role").hidden = !manages;
+  $("assign-member").hidden = !manages;
+  const select = $("assign-user-select");
+  const chosen = select.value;
+  const annotators = roles.filter((r) => ANNOTATING_ROLES.includes(r.role)).map((r) => r.user);
+  select.replaceChildren(new Option("no one", ""), ...annotators.map((user) => new Option(user, user)));
+  if (annotators.includes(chosen)) select.value = chosen;
+}
+
+const ANNOTATING_ROLES = ["annotator", "manager", "owner"];
+
+function showMemberSelect(members) {
+  const select = $("assign-member-select");
+  const chosen = select.value;
+  select.replaceChildren(...members.map((m) => new Option(`${memberName(m)} (${m.id})`, m.id)));
+  if (members.some((m) => m.id === chosen)) select.value = chosen;
+}
+
+/** The agreement between annotators (GET .../agreement; null: not asked for): the project's mean, then per member
+ * its mean map distance, flagged above the threshold. */
+export function showAgreement(report) {
+  $("agreement-box").hidden = !report;
+  if (!report) return;
+  const distance = (value) => (value === null ? "—" : value.toFixed(4));
+  const flagged = report.flagged.length ? ` · ${report.flagged.length} flagged for review` : "";
+  $("agreement-summary").textContent = report.members.length
+    ? `Agreement: mean map distance ${distance(report.map_distance)} (threshold ${report.threshold}, by sqrt(area))${flagged}`
+    : "Agreement: no member is annotated twice with curves yet.";
+  $("agreement-list").replaceChildren(
+    ...report.members.map((entry) => {
+      const item = document.createElement("li");
+      item.dataset.member = entry.member;
+      item.classList.toggle("flagged", entry.flagged);
+      const member = state.collection.members.find((m) => m.id === entry.member);
+      const pairs = entry.pairs.map((p) => `${p.a ?? "?"}/${p.b ?? "?"} ${distance(p.map_distance)}`).join(", ");
+      const flag = entry.flagged ? " · over the threshold: review it" : "";
+      item.textContent = `${member ? memberName(member) : ""} (${entry.member}) · ${distance(entry.map_distance)}${flag} · ${pairs}`;
+      return item;
+    }),
+  );
 }
 
 /** "My work" (GET /me/work): the members assigned to the user, what is next first. */
