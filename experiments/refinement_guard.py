@@ -1,26 +1,33 @@
 """Does refinement ever end worse than its start? ``zoomout`` and ``rhm`` (defaults) through
 :func:`curvefm.matching.convert`, whose guard keeps the nearest-neighbour maps when an intrinsic figure got worse,
 on every pair of the reproduce suite (``FULL_PAIRS``: FAUST, FAUST-5k, TOSCA within and across classes,
-cat -> lion), with 2 and 10 traced curves drawn as ``curvefm reproduce`` draws them (``CurvePool``, seed 0).
+cat -> lion), with 2 and 10 traced curves drawn as ``curvefm reproduce`` draws them (``CurvePool``, seed 0; or with
+``--curves farthest`` 2n farthest points, consecutive pairs joined, issue 35's protocol), their endpoints chosen on
+the source and, in a row of their own, on the target (``--endpoints-on``).
 
 Each row starts from the default method's (``combined``) functional maps at k = 120 and records the mean geodesic
 error / sqrt(area) of the start (the ``nearest-neighbor`` converter, defaults: the maps the guard compares with), of
 each refiner's returned map (the refined one, ZoomOut stopped at a smaller size, or the start), and of the map the
 refiner produced before the guard chose (``refined``), source -> target / target -> source on the ground truth
-(dense, or across TOSCA classes the shared landmarks the curves do not end at, as ``curvefm reproduce`` scores
-them; never at a curve's end, which the refiners pin), which map was kept and why, the intrinsic figures, and
-the converter's seconds (guard included). ``--held-out`` runs the pairs held out of the suite instead. A
+(dense, or across TOSCA classes the shared landmarks the curves were not drawn from), never at a curve's end, which
+the refiners pin (:func:`curvefm.evaluation.truth_to_score`), which map was kept and why, the intrinsic figures, and
+the converter's seconds (guard included). ``--pairs held-out`` runs the pairs held out of the suite instead. A
 *regression* is a row where a refiner's returned map is worse than its start by more than 1% (relative, on the mean
-of both directions); a *missed gain* is one where the guard returned the start or an earlier stage although the
-whole refinement's map was better than that by more than 1%. Prints one JSON object (``--out``
-also writes it); experiments/refinement_guard.json is its output, experiments/refinement_guard_held_out.json that of
-``--held-out``.
+of both directions); an *accepted worsening* is one where the guard returned the refined (or stopped) map although it
+is worse than the start by more than 1% on the mean or in either direction; a *missed gain* is one where the guard
+returned the start or an earlier stage although the whole refinement's map was better than that by more than 1%.
+Prints one JSON object (``--out`` also writes it, after every row); experiments/refinement_guard.json is its output,
+experiments/refinement_guard_held_out.json that of ``--pairs held-out`` (with both sides since 2026-11-28:
+experiments/refinement_guard_both_directions_held_out.json), experiments/accuracy_both_directions.json
+that of ``--datasets faust cat-lion --names tr_reg_000->tr_reg_011 cat-00->lion-00 --curves farthest`` (the tables
+of docs/accuracy.md).
 
-    nice python -m experiments.refinement_guard [--counts 2 10] [--seeds 0] [--pairs faust tosca-cross] [--held-out]
+    nice python -m experiments.refinement_guard [--pairs suite|held-out] [--datasets faust tosca-cross]
+        [--names PAIR ...] [--counts 2 10] [--seeds 0] [--endpoints-on source target] [--curves pool|farthest]
         [--out experiments/refinement_guard.json] [--maps-dir DIR]
 
 ``--maps-dir`` also saves each row's start and refined maps (``.npz``), so a change of the guard can be
-re-checked without running the refiners again. Bases come from the store (``CURVEFM_DATA``).
+re-checked without running the refiners again. Bases come from ``CURVEFM_BENCH_DATA`` (``benchmarks.common``).
 """
 
 from __future__ import annotations
