@@ -24,6 +24,7 @@ of docs/accuracy.md).
 
     nice python -m experiments.refinement_guard [--pairs suite|held-out] [--datasets faust tosca-cross]
         [--names PAIR ...] [--counts 2 10] [--seeds 0] [--endpoints-on source target] [--curves pool|farthest]
+        [--refiners zoomout rhm]
         [--out experiments/refinement_guard.json] [--maps-dir DIR]
 
 ``--maps-dir`` also saves each row's start and refined maps (``.npz``), so a change of the guard can be
@@ -130,7 +131,7 @@ def run_row(pair, shapes: ShapePair, truth, count: int, seed: int, side: str, ar
     start_result = convert(shapes, fmaps, nn, nn_params, paths=paths)
     row["start"] = errors(start_result, scored)
     maps = {"start_MN": start_result.maps.p2p_MN, "start_NM": start_result.maps.p2p_NM}
-    for name in REFINERS:
+    for name in args.refiners:
         row[name] = refine(shapes, fmaps, paths, scored, name, maps)
         print(
             f"{pair.name} {count} curves, endpoints on the {side}: {name} {row[name]['returned']['mean']} "
@@ -163,7 +164,7 @@ def summarise(rows: list[dict]) -> dict:
     regressions, missed, accepted = [], [], []
     for row in rows:
         before = row["start"]["mean"]
-        for name in REFINERS:
+        for name in (name for name in REFINERS if name in row):
             entry = {
                 "pair": row["pair"],
                 "count": row["count"],
@@ -188,12 +189,16 @@ def summarise(rows: list[dict]) -> dict:
         "regressions": len(regressions),
         "regression_list": regressions,
         "accepted_worse": len(accepted),
-        "accepted_worse_of": len(rows) * len(REFINERS),
+        "accepted_worse_of": sum(name in row for row in rows for name in REFINERS),
         "accepted_worse_list": accepted,
         "missed_gains": len(missed),
         "missed_gain_list": missed,
-        "kept": {name: dict(Counter(row[name]["kept"] for row in rows)) for name in REFINERS},
-        "mean_error": {key: round(float(np.mean([mean_error(row, key) for row in rows])), 5) for key in MAPS},
+        "kept": {name: dict(Counter(row[name]["kept"] for row in rows if name in row)) for name in REFINERS},
+        "mean_error": {
+            key: round(float(np.mean([mean_error(row, key) for row in rows if key in row])), 5)
+            for key in MAPS
+            if any(key in row for row in rows)
+        },
     }
 
 
@@ -204,6 +209,7 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, nargs="+", default=[0], help="curve draws (default 0)")
     parser.add_argument("--endpoints-on", nargs="+", default=list(ENDPOINT_SIDES), choices=ENDPOINT_SIDES)
     parser.add_argument("--curves", choices=("pool", "farthest"), default="pool", help="how endpoints are drawn")
+    parser.add_argument("--refiners", nargs="+", default=list(REFINERS), choices=REFINERS)
     parser.add_argument("--out", type=Path, default=None, help="also write the JSON here (after every row)")
     parser.add_argument("--maps-dir", type=Path, default=None, help="save each row's start and refined maps here")
     args = parser.parse_args()
@@ -217,6 +223,7 @@ def main() -> None:
         "counts": args.counts,
         "seeds": args.seeds,
         "endpoints_on": args.endpoints_on,
+        "refiners": args.refiners,
         "error": "mean geodesic error / sqrt(area): source_to_target, target_to_source, mean of both; never at a "
         "curve's end",
         "regression": f"returned map's mean worse than the start's by more than {REGRESSION:.0%}",
