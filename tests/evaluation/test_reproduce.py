@@ -30,7 +30,7 @@ def run(shared_data, tmp_path_factory):
         "--data",
         str(out / "store"),
     ]
-    done = subprocess.run(command, capture_output=True, text=True, timeout=900)
+    done = subprocess.run(command, capture_output=True, text=True, timeout=1800)  # both directions: twice the runs
     assert done.returncode == 0, done.stderr[-3000:]
     return out / "results"
 
