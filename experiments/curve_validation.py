@@ -165,7 +165,7 @@ def run_session(loaded: LoadedPair, count: int, seed: int) -> dict:
             with solver_for(kind, shapes, priors) as solver:
                 solver.add_curves([(pm, pn, 1.0) for pm, pn in curves])
                 maps = FunctionalMaps(solver.C_MN, solver.C_NM)
-        errors = loaded.score(maps.C_NM, seed)
+        errors = loaded.score(maps.C_NM, seed, curves)
         row["error"][name], row["error_area"][name] = errors.mean, errors.mean_area
         # validation: one solver holding the training curves of each fold in turn (an edit per fold)
         prior_before, started = priors.seconds, time.perf_counter()

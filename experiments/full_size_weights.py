@@ -35,11 +35,13 @@ SEEDS = 3
 
 
 def run(loaded: LoadedPair, seed: int, settings: dict[str, dict]) -> dict:
-    hints = Hints.from_curves(loaded.pool.curves(FULL_SIZE_CURVES, seed, False))
+    curves = loaded.pool.curves(FULL_SIZE_CURVES, seed, False)
+    hints = Hints.from_curves(curves)
     errors = {}
     for name, params in settings.items():
         plugin, checked = registry.load("method", "no17" if name == "no17" else "combined", params)
-        errors[name] = round(loaded.score(plugin.run(loaded.shapes, hints, checked, no_progress).C_NM, seed).mean, 6)
+        maps = plugin.run(loaded.shapes, hints, checked, no_progress)
+        errors[name] = round(loaded.score(maps.C_NM, seed, curves).mean, 6)
     return {"dataset": loaded.pair.dataset, "pair": loaded.pair.name, "seed": seed, "errors": errors}
 
 

@@ -57,7 +57,7 @@ def run(loaded: LoadedPair, seed: int, gammas: list[float]) -> dict:
     for gamma in gammas:
         weights = np.full(C_NM.shape, gamma)
         weights[:BLOCK, :BLOCK] = 1.0
-        errors[str(gamma)] = round(loaded.score(C_NM * weights, seed).mean, 6)
+        errors[str(gamma)] = round(loaded.score(C_NM * weights, seed, curves).mean, 6)
     distortion = landmark_distortion(shapes.basis_M, shapes.basis_N, Hints.from_curves(curves).landmarks)
     return {
         "dataset": loaded.pair.dataset,

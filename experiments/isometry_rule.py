@@ -94,13 +94,13 @@ def run(loaded: LoadedPair, count: int, seed: int) -> dict:
     for key, (method, params) in METHODS.items():
         plugin, params = registry.load("method", method, params)
         maps = plugin.run(shapes, hints, params, no_progress)
-        row[key] = round(loaded.score(maps.C_NM, seed).mean, 5)
+        row[key] = round(loaded.score(maps.C_NM, seed, curves).mean, 5)
     if count >= 20:
         plugin, params = registry.load("method", "combined", OFF | {"full_size_curves": 1})
         maps = plugin.run(shapes, hints, params, no_progress)
         for size in SIZES:
             C_NM = maps.C_NM[:size, :size]
-            row[f"size_{size}"] = round(loaded.score(C_NM, seed).mean, 5)
+            row[f"size_{size}"] = round(loaded.score(C_NM, seed, curves).mean, 5)
     return row
 
 

@@ -44,14 +44,15 @@ def main():
         loaded = LoadedPair.load(data, pair, DEFAULT_K, store)
         for count in (c for c in args.counts if c <= loaded.pool.max_curves):
             for seed in range(SEEDS):
-                hints = Hints.from_curves(loaded.pool.curves(count, seed, False))
+                curves = loaded.pool.curves(count, seed, False)
+                hints = Hints.from_curves(curves)
                 for weight in args.weights:
                     params = {"prior_weight": weight, "full_size_curves": 1}  # solved and handed out at 120 x 120
                     plugin, params = registry.load("method", "combined", params)
                     maps = plugin.run(loaded.shapes, hints, params, no_progress)
                     for size in args.sizes:
                         C_NM = maps.C_NM[:size, :size]
-                        error = loaded.score(C_NM, seed).mean
+                        error = loaded.score(C_NM, seed, curves).mean
                         errors[(pair.dataset, count, weight, size)].append(error)
     rows = [
         {"dataset": d, "curves": c, "prior_weight": w, "size": s, "runs": len(e), "mean": round(float(np.mean(e)), 5)}

@@ -153,7 +153,7 @@ def run(loaded: LoadedPair, count: int, seed: int, sizes, fold_counts, honest: b
     row = {"dataset": loaded.pair.dataset, "pair": loaded.pair.name, "curves": count, "seed": seed}
     plugin, params = registry.load("method", "combined", {})
     default = plugin.run(shapes, hints, params, no_progress)
-    row["default"] = loaded.score(default.C_NM, seed).mean
+    row["default"] = loaded.score(default.C_NM, seed, curves).mean
     row["default_size"] = int(default.C_NM.shape[0])
     row["curves_alone"] = bool(curves_alone_suffice(shapes.basis_M, shapes.basis_N, curves))
     energy = params.solver_params() | {"full_size_curves": 1, "non_isometric_spectra": math.inf}  # as solved
@@ -163,7 +163,7 @@ def run(loaded: LoadedPair, count: int, seed: int, sizes, fold_counts, honest: b
     ) as solver:
         solver.add_curves([(pm, pn, 1.0) for pm, pn in curves])
         C_NM = solver.C_NM
-        row["fixed"] = {str(s): loaded.score(C_NM[:s, :s], seed).mean for s in sizes}
+        row["fixed"] = {str(s): loaded.score(C_NM[:s, :s], seed, curves).mean for s in sizes}
         row["cv"] = {}
         for folds in fold_counts:
             areas = (shapes.mesh_M.area, shapes.mesh_N.area)

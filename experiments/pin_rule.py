@@ -39,15 +39,14 @@ import numpy as np
 from benchmarks.common import machine
 from curvefm import registry
 from curvefm.errors import InvalidInput
-from curvefm.evaluation import ground_truth_curves
+from curvefm.evaluation import ground_truth_curves, truth_away_from_ends
 from curvefm.evaluation.ground_truth import GroundTruth
 from curvefm.evaluation.metrics import map_geodesic_errors
-from curvefm.evaluation.reproduce.datasets import DATASETS, FULL_PAIRS
 from curvefm.fmap import DEFAULT_K, Hints
 from curvefm.matching import convert
 from curvefm.pointwise import CurvePins
 from curvefm.runtime import limit_blas_threads
-from experiments.common import HELD_OUT_PAIRS, ground_truth_pair, truth_away_from_ends
+from experiments.common import add_pair_arguments, chosen_pairs, ground_truth_pair
 from experiments.refinement_guard import recording
 
 DIRECTIONS = ("source_to_target", "target_to_source")
@@ -158,16 +157,13 @@ def finished(rows: list[dict], args: argparse.Namespace, begin: float) -> dict:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--pairs", choices=("suite", "held-out"), default="suite")
-    parser.add_argument("--names", nargs="+", default=None, help="pair names, in this order (default: every pair)")
-    parser.add_argument("--datasets", nargs="+", default=list(DATASETS), choices=list(DATASETS))
+    add_pair_arguments(parser)
     parser.add_argument("--counts", type=int, nargs="+", default=[2, 10])
     parser.add_argument("--rules", nargs="+", default=["all", "ends", "soft0.5"])
     parser.add_argument("--refiners", nargs="+", default=["zoomout", "rhm"])
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
-    pool = [p for p in (FULL_PAIRS if args.pairs == "suite" else HELD_OUT_PAIRS) if p.dataset in args.datasets]
-    pairs = pool if args.names is None else [p for name in args.names for p in pool if p.name == name]
+    pairs = chosen_pairs(args)
     report = {"benchmark": "pin_rule", "machine": machine(), "k": DEFAULT_K, "method": "combined", "pairs": args.pairs}
     report["machine"]["load_avg_1min_before"] = round(os.getloadavg()[0], 2)
     begin = time.perf_counter()

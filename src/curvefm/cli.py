@@ -347,13 +347,14 @@ def cmd_evaluate(args) -> int:
         progress=progress_bar("evaluate"),
         method=args.method,
         method_params=_json_option(args.method_params, "--method-params"),
+        endpoints_on=args.endpoints_on,
     )
     if args.json:
         print(json.dumps(report, indent=2))
         return 0
     print(
         f"{report['source']} -> {report['target']}  ({report['ground_truth']}, {args.method}, {args.curves} curves, "
-        f"k={args.k}; scored at {report['scored_at']})"
+        f"k={args.k}; endpoints on the {args.endpoints_on}; scored at {report['scored_at']})"
     )
     for direction, e in report["errors"].items():
         print(
@@ -627,6 +628,12 @@ def parser() -> argparse.ArgumentParser:
     e.add_argument("--alpha", type=float, help="commutativity weight (default: the method's own)")
     e.add_argument("--method", default="combined", help="map method plugin: combined, curves, obcs12, no17, ...")
     e.add_argument("--method-params", default="{}", help="map method parameters as JSON")
+    e.add_argument(
+        "--endpoints-on",
+        choices=("source", "target"),
+        default="source",
+        help="the shape the curves' endpoints are chosen on (farthest points); their partners come from the truth",
+    )
     e.add_argument("--json", action="store_true", help="print the full report as JSON")
     e.set_defaults(run=cmd_evaluate)
 

@@ -182,12 +182,14 @@ def test_evaluate_prints_json_errors(shared_data, tmp_path):
         5,
         "--k",
         40,
+        "--endpoints-on",
+        "target",
         "--json",
         data=tmp_path / "data",
     )
     assert run.returncode == 0, run.stderr
     report = json.loads(run.stdout)
-    assert report["ground_truth"] == "lion2cat"
+    assert report["ground_truth"] == "lion2cat" and report["endpoints_on"] == "target"
     errors = report["errors"]["source_to_target"]
     assert 0 < errors["mean_area"] < 0.2 and len(errors["curve"]) == len(errors["radii"])
 

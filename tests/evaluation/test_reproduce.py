@@ -30,7 +30,7 @@ def run(shared_data, tmp_path_factory):
         "--data",
         str(out / "store"),
     ]
-    done = subprocess.run(command, capture_output=True, text=True, timeout=900)
+    done = subprocess.run(command, capture_output=True, text=True, timeout=1800)  # both directions: twice the runs
     assert done.returncode == 0, done.stderr[-3000:]
     return out / "results"
 
@@ -41,23 +41,29 @@ def load(results, name):
 
 def test_every_method_variant_count_and_seed_is_recorded(run):
     accuracy = load(run, "accuracy.json")
-    assert set(accuracy["summary"]) == {"faust", "cat-lion"}
+    summaries = (accuracy["summary"], accuracy["summary_target_to_source"])
+    assert all(set(summary) == {"faust", "cat-lion"} for summary in summaries)
     expected = {
-        (p, v.key, c, s)
+        (p, v.key, c, s, d)
         for p in ("tr_reg_000->tr_reg_011", "cat-00->lion-00")
         for v in VARIANTS
         for c in (1, 5, 20)
         for s in (0, 1)
+        for d in ("source_to_target", "target_to_source")
     }
-    recorded = {(r["pair"], r["variant"], r["count"], r["seed"]) for r in accuracy["records"]}
+    recorded = {(r["pair"], r["variant"], r["count"], r["seed"], r["direction"]) for r in accuracy["records"]}
     assert recorded == expected
     for record in accuracy["records"]:
         assert "failed" not in record, record
         assert 0 <= record["mean"] < 1 and record["mean_area"] > 0 and 0 < record["auc"] <= 1
-    for by_variant in accuracy["summary"].values():
-        for by_count in by_variant.values():
-            for cell in by_count.values():
-                assert cell["runs"] == 2 and len(cell["curve"]) == 51 and cell["curve"] == sorted(cell["curve"])
+    for summary in summaries:
+        for by_variant in summary.values():
+            for by_count in by_variant.values():
+                for cell in by_count.values():
+                    assert cell["runs"] == 2 and len(cell["curve"]) == 51 and cell["curve"] == sorted(cell["curve"])
+    # the two directions are separate runs (their own curves), not one map read twice
+    means = {(r["pair"], r["variant"], r["count"], r["seed"], r["direction"]): r["mean"] for r in accuracy["records"]}
+    assert any(means[key[:4] + ("source_to_target",)] != means[key[:4] + ("target_to_source",)] for key in means)
 
 
 def test_more_curves_give_lower_error_and_traced_curves_stay_close_to_exact(run):
@@ -88,6 +94,8 @@ def test_plots_and_a_report_with_every_claim(run):
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 20_000
     report = (results / "results.md").read_text()
     assert "![faust](accuracy_faust.png)" in report and "![timing](timing.png)" in report
+    assert report.count("Target -> source, endpoints chosen on the target:") == 2
+    assert "## Which method wins: target -> source, endpoints chosen on the target" in report
     claims = load(results, "results.json")["claims"]
     expected = expected_verdicts(load(results, "accuracy.json")["summary"], load(results, "timing.json"))
     assert len(claims) == len(expected) == 8

@@ -223,7 +223,7 @@ def test_sparse_truth_holds_landmarks_out_of_the_curves(shared_data):
 def test_evaluate_scores_a_sparse_truth_at_landmarks_the_curves_avoid(shared_data, tmp_path):
     source, target = shared_data / "tosca/horse0.off", shared_data / "tosca/wolf0.off"
     report = evaluate_pair(source, target, n_curves=3, k=20, store=Store(tmp_path))
-    assert report["scored_at"] == "7 landmarks the curves do not end at"
+    assert report["scored_at"] == "7 landmarks the curves were not drawn from, none at a curve's end"
     assert report["errors"]["source_to_target"]["count"] == report["errors"]["target_to_source"]["count"] == 7
     M, N = load_mesh(source), load_mesh(target)
     truth = ground_truth_for(source, target, M, N)
@@ -237,12 +237,13 @@ def test_maps_are_scored_at_the_held_out_landmarks_only(shared_data, tmp_path):
     pair = Pair("tosca-cross", "tosca/horse0.off", "tosca/wolf0.off")
     loaded = LoadedPair.load(shared_data, pair, 20, Store(tmp_path))
     C_NM = np.eye(20)
-    everywhere = loaded.scorer(C_NM, loaded.shapes.basis_M, loaded.shapes.basis_N)
+    scorer = loaded.scorers["source"]
+    everywhere = scorer(C_NM, loaded.shapes.basis_M, loaded.shapes.basis_N, np.ones(len(scorer.rows_from), bool))
     assert everywhere.count == 21
     for seed in range(2):
         held_out = loaded.pool.held_out(seed)
-        mask = np.isin(loaded.scorer.rows_M, held_out)
-        scored = loaded.score(C_NM, seed)
+        mask = np.isin(scorer.rows_from, held_out)
+        scored = loaded.score(C_NM, seed, curves=[])
         assert scored.count == 7 == mask.sum()
         p2p = np.zeros(loaded.shapes.mesh_M.n_vertices, dtype=np.int64)
         p2p[held_out] = pointwise_from_fmap(C_NM, loaded.shapes.basis_N, loaded.shapes.basis_M, rows=held_out)

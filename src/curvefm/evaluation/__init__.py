@@ -17,9 +17,20 @@ from curvefm.evaluation.ground_truth import (
     tosca_landmark_truth,
 )
 from curvefm.evaluation.metrics import ErrorSummary, evaluate_map, map_geodesic_errors
-from curvefm.evaluation.protocol import CurvePool, carried_path, evaluate_pair, ground_truth_curves, score
+from curvefm.evaluation.protocol import (
+    ENDPOINT_SIDES,
+    CurvePool,
+    carried_path,
+    evaluate_pair,
+    ground_truth_curves,
+    reversed_truth,
+    score,
+    truth_away_from_ends,
+    truth_to_score,
+)
 
 __all__ = [
+    "ENDPOINT_SIDES",
     "CurvePool",
     "ErrorSummary",
     "GroundTruth",
@@ -36,8 +47,11 @@ __all__ = [
     "read_lion2cat",
     "read_pid",
     "read_vts",
+    "reversed_truth",
     "score",
     "shared_data_dir",
     "tosca_class",
     "tosca_landmark_truth",
+    "truth_away_from_ends",
+    "truth_to_score",
 ]

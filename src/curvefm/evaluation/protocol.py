@@ -6,10 +6,15 @@ A source curve is the geodesic path between two endpoints with a known partner. 
 gets) or *exact* (the source path carried vertex by vertex through a dense ground truth, the paper's
 "pre-labelled" curves). :func:`ground_truth_curves` is the fixed protocol of the tests (2 x n farthest points
 paired in sampling order); :class:`CurvePool` draws seeded random subsets for the curve-count sweeps.
+
+Both take the side the endpoints are chosen on (``endpoints_on``, one of :data:`ENDPOINT_SIDES`): on the source,
+the target endpoints are their true images; on the target, the other way round. A map is scored both ways
+(:func:`score`), and never at the points the user gave (:func:`truth_to_score`).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -28,13 +33,41 @@ HELD_OUT_FOLDS = 3
 """A sparse ground truth's landmarks are cut into this many folds; each seed scores the maps at one of them and
 draws its curves' endpoints from the others."""
 HELD_OUT_STREAM = 7  # seeds the landmarks' shuffle apart from the endpoints' draws
+Curves = Sequence[tuple[np.ndarray, np.ndarray]]
+"""Corresponding ``(path_M, path_N)`` vertex paths."""
+ENDPOINT_SIDES = ("source", "target")
+"""Where a protocol chooses the curves' endpoints; their partners on the other shape come from the ground truth."""
+
+
+def reversed_truth(truth: GroundTruth) -> GroundTruth:
+    """The same correspondences read from Y to X."""
+    return GroundTruth(truth.ids_Y, truth.ids_X, truth.kind, truth.dense)
+
+
+def checked_side(endpoints_on: str) -> str:
+    if endpoints_on not in ENDPOINT_SIDES:
+        raise InvalidInput(f"endpoints are chosen on the 'source' or the 'target', not '{endpoints_on}'")
+    return endpoints_on
+
+
+def swapped(curves: Curves) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``(path_N, path_M)`` pairs as ``(path_M, path_N)``, and back."""
+    return [(b, a) for a, b in curves]
 
 
 def ground_truth_curves(
-    mesh_M: Mesh, mesh_N: Mesh, truth: GroundTruth, n_curves: int, seed_vertex: int = 0
+    mesh_M: Mesh,
+    mesh_N: Mesh,
+    truth: GroundTruth,
+    n_curves: int,
+    seed_vertex: int = 0,
+    endpoints_on: str = "source",
 ) -> list[tuple[np.ndarray, np.ndarray]]:
-    """``n_curves`` pairs of corresponding vertex paths (internal ids) built from the ground truth. A sparse ground
-    truth's endpoints avoid the landmarks :func:`held_out_landmarks` keeps for scoring (seed 0)."""
+    """``n_curves`` pairs ``(path_M, path_N)`` of corresponding vertex paths (internal ids) built from the ground
+    truth, their endpoints 2 x ``n_curves`` farthest points of the ``endpoints_on`` side. A sparse ground truth's
+    endpoints avoid the landmarks :func:`held_out_landmarks` keeps for scoring (seed 0)."""
+    if checked_side(endpoints_on) == "target":
+        return swapped(ground_truth_curves(mesh_N, mesh_M, reversed_truth(truth), n_curves, seed_vertex))
     partner = dict(zip(truth.ids_X.tolist(), truth.ids_Y.tolist(), strict=True))
     known = np.fromiter(partner, dtype=np.int64)
     known = known[~np.isin(known, held_out_landmarks(truth, 0))]
@@ -67,13 +100,35 @@ def held_out_landmarks(truth: GroundTruth, seed: int) -> np.ndarray:
     return np.sort(np.array_split(order, HELD_OUT_FOLDS)[seed % HELD_OUT_FOLDS])
 
 
-def scored_truth(truth: GroundTruth, seed: int) -> GroundTruth:
-    """The rows a map solved from the curves of ``seed`` is scored on: all of a dense truth, the
-    :func:`held_out_landmarks` of a sparse one."""
+def scored_truth(truth: GroundTruth, seed: int, endpoints_on: str = "source") -> GroundTruth:
+    """The rows a map solved from the curves of ``seed`` (endpoints chosen on ``endpoints_on``) may be scored on: all
+    of a dense truth, the :func:`held_out_landmarks` of a sparse one."""
     if truth.dense:
         return truth
+    if checked_side(endpoints_on) == "target":
+        return reversed_truth(scored_truth(reversed_truth(truth), seed))
     rows = np.isin(truth.ids_X, held_out_landmarks(truth, seed))
     return GroundTruth(truth.ids_X[rows], truth.ids_Y[rows], truth.kind, truth.dense)
+
+
+def curve_ends(curves: Curves) -> tuple[np.ndarray, np.ndarray]:
+    """The vertices the curves ``(path_M, path_N)`` end at: on M, and on N."""
+    ends = np.array([[path[0], path[-1]] for pair in curves for path in pair], dtype=np.int64).reshape(-1, 2, 2)
+    return ends[:, 0].ravel(), ends[:, 1].ravel()
+
+
+def truth_away_from_ends(truth: GroundTruth, curves: Curves) -> GroundTruth:
+    """The ground-truth rows at neither end of any curve (on either shape): the points the user gave, which the
+    refiners pin, say nothing about the map."""
+    ends_M, ends_N = curve_ends(curves)
+    keep = ~np.isin(truth.ids_X, ends_M) & ~np.isin(truth.ids_Y, ends_N)
+    return GroundTruth(truth.ids_X[keep], truth.ids_Y[keep], truth.kind, truth.dense)
+
+
+def truth_to_score(truth: GroundTruth, curves: Curves, seed: int = 0, endpoints_on: str = "source") -> GroundTruth:
+    """The rows a map solved from ``curves`` (drawn for ``seed`` on the ``endpoints_on`` side) is scored on:
+    :func:`scored_truth` without the curves' ends (:func:`truth_away_from_ends`)."""
+    return truth_away_from_ends(scored_truth(truth, seed, endpoints_on), curves)
 
 
 def distinct_sources(truth: GroundTruth) -> np.ndarray:
@@ -90,9 +145,16 @@ class CurvePool:
     curves would otherwise end at nearly all of them, and a map would be scored on the very points it was given.
     A subset of n curves is n distinct unordered pairs of candidates, so curves may share an endpoint, as clicked
     curves often do.
+
+    With ``endpoints_on="target"`` the candidates are the target's (the pool works on the swapped pair, so
+    :meth:`held_out`, :meth:`candidates` and :meth:`endpoints` name target vertices) and :meth:`curves` still
+    returns ``(path_M, path_N)``.
     """
 
-    def __init__(self, mesh_M: Mesh, mesh_N: Mesh, truth: GroundTruth, size: int = 40):
+    def __init__(self, mesh_M: Mesh, mesh_N: Mesh, truth: GroundTruth, size: int = 40, endpoints_on: str = "source"):
+        self.endpoints_on = checked_side(endpoints_on)
+        if endpoints_on == "target":
+            mesh_M, mesh_N, truth = mesh_N, mesh_M, reversed_truth(truth)
         self.mesh_M, self.mesh_N, self.truth = mesh_M, mesh_N, truth
         self.partner = dict(zip(truth.ids_X.tolist(), truth.ids_Y.tolist(), strict=True))
         if truth.dense:
@@ -132,7 +194,8 @@ class CurvePool:
         return list(chosen)
 
     def curves(self, count: int, seed: int, exact: bool) -> list[tuple[np.ndarray, np.ndarray]]:
-        """Corresponding ``(path_M, path_N)`` pairs: traced target curves, or exact ones (dense truth only)."""
+        """Corresponding ``(path_M, path_N)`` pairs: the other side's curves traced, or exact ones (dense truth
+        only)."""
         if exact and not self.truth.dense:
             raise InvalidInput(f"exact curves need a dense ground truth; '{self.truth.kind}' is sparse")
         out = []
@@ -143,7 +206,7 @@ class CurvePool:
             else:
                 path_N = shortest_path(self.mesh_N.edge_graph, self.partner[a], self.partner[b])
             out.append((path_M, path_N))
-        return out
+        return swapped(out) if self.endpoints_on == "target" else out
 
 
 def carried_path(mesh_N: Mesh, path_M: np.ndarray, partner: dict[int, int]) -> np.ndarray:
@@ -183,12 +246,14 @@ def evaluate_pair(
     progress: Progress = no_progress,
     method: str = "combined",
     method_params: dict[str, Any] | None = None,
+    endpoints_on: str = "source",
 ) -> dict[str, Any]:
-    """Match a pair with known ground truth using curves from that truth (``method``: any map method; the
-    descriptor baselines get the curves' endpoints as landmarks), and score it."""
+    """Match a pair with known ground truth using curves from that truth, their endpoints chosen on the
+    ``endpoints_on`` side (``method``: any map method; the descriptor baselines get the curves' endpoints as
+    landmarks), and score both maps away from the curves' ends (:func:`truth_to_score`)."""
     mesh_M, mesh_N = load_mesh(source), load_mesh(target)
     truth = ground_truth_for(source, target, mesh_M, mesh_N)
-    curves = ground_truth_curves(mesh_M, mesh_N, truth, n_curves)
+    curves = ground_truth_curves(mesh_M, mesh_N, truth, n_curves, endpoints_on=endpoints_on)
     result = match(
         mesh_M,
         mesh_N,
@@ -200,12 +265,14 @@ def evaluate_pair(
         method=method,
         method_params=method_params,
     )
-    scored = scored_truth(truth, 0)
+    scored = truth_to_score(truth, curves, 0, endpoints_on)
+    held = "rows" if truth.dense else "landmarks the curves were not drawn from"
     return {
         "source": str(source),
         "target": str(target),
         "ground_truth": truth.kind,
-        "scored_at": "all rows" if truth.dense else f"{len(scored)} landmarks the curves do not end at",
+        "endpoints_on": endpoints_on,
+        "scored_at": f"{len(scored)} {held}, none at a curve's end",
         "method": method,
         "curves": n_curves,
         "k": k,

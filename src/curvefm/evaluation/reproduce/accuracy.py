@@ -1,6 +1,10 @@
 """The paper's Figures 10/11: accuracy against the number of curves, exact vs traced curves, and the
 descriptor baselines given the same information (curve endpoints as landmarks, or curves as functions), and the
-combined energy (curves, wave kernel signatures and kernel maps along the curves, the default)."""
+combined energy (curves, wave kernel signatures and kernel maps along the curves, the default).
+
+Every run is made twice: with the endpoints chosen on the source, scored source -> target (``summary``, the paper's
+direction, which the claims and plots use), and with them chosen on the target, scored target -> source
+(``summary_target_to_source``)."""
 
 from __future__ import annotations
 
@@ -14,8 +18,9 @@ import numpy as np
 
 from curvefm import registry
 from curvefm.errors import CurvefmError
+from curvefm.evaluation.protocol import ENDPOINT_SIDES
 from curvefm.evaluation.reproduce.datasets import DATASETS, Suite
-from curvefm.evaluation.reproduce.scoring import LoadedPair
+from curvefm.evaluation.reproduce.scoring import DIRECTIONS, LoadedPair
 from curvefm.fmap import DEFAULT_K, Hints
 from curvefm.progress import Progress, no_progress
 from curvefm.store import Store
@@ -42,7 +47,7 @@ VARIANTS = (
 
 
 def run_accuracy(data: Path, suite: Suite, store: Store, progress: Progress = no_progress) -> dict[str, Any]:
-    """Every variant on every pair, curve count and seed; returns records and per-dataset summaries."""
+    """Every variant on every pair, curve count, seed and direction; returns records and per-dataset summaries."""
     records, skipped = [], []
     tasks = len(suite.pairs) * len(suite.counts) * suite.seeds
     done = 0
@@ -50,24 +55,31 @@ def run_accuracy(data: Path, suite: Suite, store: Store, progress: Progress = no
         progress(done / tasks, f"{pair.name}: bases and ground truth")
         loaded = LoadedPair.load(data, pair, DEFAULT_K, store)
         for count in suite.counts:
-            if count > loaded.pool.max_curves:
-                skipped.append(f"{pair.name}: {count} curves (only {loaded.pool.max_curves} endpoint pairs)")
+            if count > loaded.max_curves:
+                skipped.append(f"{pair.name}: {count} curves (only {loaded.max_curves} endpoint pairs)")
                 done += suite.seeds
                 continue
             for seed in range(suite.seeds):
-                records.extend(run_task(loaded, count, seed))
+                for side in ENDPOINT_SIDES:
+                    records.extend(run_task(loaded, count, seed, side))
                 done += 1
                 progress(done / tasks, f"{pair.name}: {count} curves, seed {seed}")
-    summary = summarise(records)
+    summaries = {direction: summarise(records, direction) for direction in DIRECTIONS.values()}
     for record in records:  # the summary keeps the cumulative curves; the table keeps the figures per run
         record.pop("curve", None)
-    return {"records": records, "skipped": skipped, "summary": summary}
+    return {
+        "records": records,
+        "skipped": skipped,
+        "summary": summaries["source_to_target"],
+        "summary_target_to_source": summaries["target_to_source"],
+    }
 
 
-def run_task(loaded: LoadedPair, count: int, seed: int) -> list[dict[str, Any]]:
-    """All variants for one random subset of ``count`` curves."""
+def run_task(loaded: LoadedPair, count: int, seed: int, side: str = "source") -> list[dict[str, Any]]:
+    """All variants for one random subset of ``count`` curves with endpoints on ``side``, scored in the direction
+    :data:`~curvefm.evaluation.reproduce.scoring.DIRECTIONS` gives it."""
     kinds = (False, True) if loaded.truth.dense else (False,)
-    curves = {exact: loaded.pool.curves(count, seed, exact) for exact in kinds}
+    curves = {exact: loaded.pools[side].curves(count, seed, exact) for exact in kinds}
     out = []
     for variant in VARIANTS:
         if variant.exact not in curves:
@@ -80,6 +92,7 @@ def run_task(loaded: LoadedPair, count: int, seed: int) -> list[dict[str, Any]]:
             "variant": variant.key,
             "count": count,
             "seed": seed,
+            "direction": DIRECTIONS[side],
         }
         start = time.perf_counter()
         try:
@@ -88,18 +101,19 @@ def run_task(loaded: LoadedPair, count: int, seed: int) -> list[dict[str, Any]]:
             out.append(record | {"failed": str(exc)})
             continue
         record["seconds"] = time.perf_counter() - start
-        errors = loaded.score(maps.C_NM, seed)
+        errors = loaded.score_side(maps, side, seed, curves[variant.exact])
         out.append(
             record | {"mean": errors.mean, "mean_area": errors.mean_area, "auc": errors.auc, "curve": errors.curve}
         )
     return out
 
 
-def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
-    """Per dataset, variant and curve count: means over pairs and seeds of the error figures and curves."""
+def summarise(records: list[dict[str, Any]], direction: str = "source_to_target") -> dict[str, Any]:
+    """Per dataset, variant and curve count: means over pairs and seeds of the error figures and curves of the runs
+    scored in ``direction``."""
     groups = defaultdict(list)
     for r in records:
-        if "failed" not in r:
+        if "failed" not in r and r["direction"] == direction:
             groups[(r["dataset"], r["variant"], r["count"])].append(r)
     order = {v.key: i for i, v in enumerate(VARIANTS)}
     datasets = list(DATASETS)

@@ -58,7 +58,7 @@ def _time_all(
         progress((len(suite.timing_counts) + i) / steps, f"time and accuracy at k = {k}")
         row = {"curves": 10, "k": k} | time_update(loaded, curves[:10], k, suite.repeats, executor)
         solver = build_solver(loaded, curves[:10], k, executor)
-        errors = loaded.score(solver.C_NM, seed=0)
+        errors = loaded.score(solver.C_NM, 0, curves[:10])
         by_k.append(row | {"mean": errors.mean, "mean_area": errors.mean_area})
     progress(1.0, "timing done")
     return by_count, by_k
