@@ -9,11 +9,10 @@ from the geodesic distance to what is already given, like a farthest-point sampl
 * the end maximises ``sqrt(drift(v)) * min(d(v), d_start(v))``, so it lies far from the curves and from the start
   too, and the path joining them crosses unconstrained surface.
 
-The square root was measured (benchmarks/bench_suggestions.py, every suggested end placed at the truth, FAUST
-000 -> 011 and cat -> lion, 2026-11-28; docs/accuracy.md#suggested-curves): the drift alone (``drift * d``) sent
-curve after curve to the extremities and stayed above 0.040 on FAUST up to 6 curves (the unassisted protocol: 0.0265
-at 6); the distance alone (plain farthest points from the curves) reached 0.0258 on FAUST and 0.0285 on cat -> lion
-at 7 curves; ``sqrt(drift)`` 0.0257 and 0.0273. Two pairs only: a weight to revisit on held-out pairs.
+The square root was chosen by measurement on FAUST 000 -> 011 and cat -> lion against the drift alone and the
+distance alone (benchmarks/bench_suggestions.py; the figures and how far they fall short of issue 35's target are in
+docs/accuracy.md#suggested-curves). The first suggestion, made from no curve, can join two extremities that a
+left-right mirror swaps (FAUST's feet): a known weakness.
 
 Their images on the target are the maps' own (nearest neighbours in both spectral embeddings, as the default
 pointwise conversion): the person accepts them, or moves an end where the map is wrong. Distances are graph
