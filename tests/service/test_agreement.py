@@ -92,5 +92,10 @@ def test_double_annotation_agreement_against_a_hand_computation(processes, tmp_p
     assert np.isclose(pair["map_distance"], map_by_hand, rtol=1e-6), (pair["map_distance"], map_by_hand)
     assert 0 < map_by_hand < 0.1  # both near the identity, not the same map
     assert np.isclose(report["map_distance"], map_by_hand) and report["flagged"] == []
+    figures = {a["annotator"]: a for a in report["annotators"]}
+    assert list(figures) == ["abe", "ann"] and all(a["members"] == 1 for a in figures.values())
+    for figure in figures.values():
+        assert np.isclose(figure["map_distance"], map_by_hand)
+        assert np.isclose(figure["endpoint_distance"], by_hand.mean())
 
     assert api.client_for("oscar").get(f"{base}/agreement").status_code == 404

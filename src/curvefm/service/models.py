@@ -291,8 +291,20 @@ class MemberAgreement(BaseModel):
     flagged: bool = Field(description="map_distance above the threshold: review it")
 
 
+class AnnotatorAgreementView(BaseModel):
+    annotator: str
+    members: int = Field(description="members they share with another annotator")
+    map_distance: float | None = Field(
+        description="the mean map distance of their pairs with the other annotators over those members (null: none)"
+    )
+    endpoint_distance: float | None = Field(description="the mean endpoint distance of those pairs")
+
+
 class AgreementReport(BaseModel):
     members: list[MemberAgreement] = Field(description="the members annotated twice or more, both with curves")
+    annotators: list[AnnotatorAgreementView] = Field(
+        description="per annotator, by name: how far their answers lie from the others' (who disagrees with everyone)"
+    )
     map_distance: float | None = Field(description="the mean over those members (null: none)")
     endpoint_distance: float | None = Field(description="the mean endpoint distance over their pairs")
     threshold: float = Field(description="CURVEFM_AGREEMENT_THRESHOLD, units of sqrt(area)")

@@ -17,7 +17,15 @@ from fastapi import APIRouter
 from sqlalchemy import Connection
 
 from curvefm.access import User
-from curvefm.collection import Annotated, CollectionRecord, PairAgreement, agreement
+from curvefm.collection import (
+    Annotated,
+    AnnotatorAgreement,
+    CollectionRecord,
+    PairAgreement,
+    agreement,
+    by_annotator,
+    mean_of_known,
+)
 from curvefm.errors import Conflict, NotFound, shown
 from curvefm.geometry import farthest_point_sampling
 from curvefm.pointwise import pointwise_from_both
@@ -29,6 +37,7 @@ from curvefm.service.models import (
     AgreementReport,
     AnnotationRequest,
     AnnotationView,
+    AnnotatorAgreementView,
     CurveEndsAgreement,
     MemberAgreement,
     MemberReview,
@@ -184,37 +193,37 @@ def get_agreement(collection_id: str, services: ServicesDep, user: CurrentUser) 
     template = services.live.mesh(record.template, "template")
     rows = farthest_point_sampling(template, min(services.settings.agreement_points, template.n_vertices))
     threshold = services.settings.agreement_threshold
-    members = [_member_agreement(services, record, member, twice[member], rows, threshold) for member in twice]
-    pairs = [pair for member in members for pair in member.pairs]
+    compared = {member: _member_pairs(services, record, member, twice[member], rows) for member in twice}
+    members = [_member_agreement(member, pairs, threshold) for member, pairs in compared.items()]
+    annotators = by_annotator([(member, pair) for member, pairs in compared.items() for pair in pairs])
     return AgreementReport(
         members=members,
-        map_distance=_mean([m.map_distance for m in members]),
-        endpoint_distance=_mean([pair.endpoint_distance for pair in pairs]),
+        annotators=[_annotator_view(a) for a in annotators],
+        map_distance=mean_of_known([m.map_distance for m in members]),
+        endpoint_distance=mean_of_known([pair.endpoint_distance for pairs in compared.values() for pair in pairs]),
         threshold=threshold,
         points=len(rows),
         flagged=[m.member for m in members if m.flagged],
     )
 
 
-def _member_agreement(
-    services: Services,
-    record: CollectionRecord,
-    member_id: str,
-    annotations: list[Annotation],
-    rows: np.ndarray,
-    threshold: float,
-) -> MemberAgreement:
+def _member_pairs(
+    services: Services, record: CollectionRecord, member_id: str, annotations: list[Annotation], rows: np.ndarray
+) -> list[PairAgreement]:
     member = services.live.mesh(record.member(member_id).shape, "member")
     answers = [_annotated(services, a, rows) for a in annotations]
-    pairs = [_pair_view(agreement(a, b, member)) for a, b in combinations(answers, 2)]
-    distance = _mean([p.map_distance for p in pairs])
+    return [agreement(a, b, member) for a, b in combinations(answers, 2)]
+
+
+def _member_agreement(member_id: str, pairs: list[PairAgreement], threshold: float) -> MemberAgreement:
+    distance = mean_of_known([p.map_distance for p in pairs])
     flagged = distance is not None and distance > threshold
-    return MemberAgreement(member=member_id, pairs=pairs, map_distance=distance, flagged=flagged)
+    views = [_pair_view(p) for p in pairs]
+    return MemberAgreement(member=member_id, pairs=views, map_distance=distance, flagged=flagged)
 
 
-def _mean(values: list[float | None]) -> float | None:
-    known = [v for v in values if v is not None]
-    return float(np.mean(known)) if known else None
+def _annotator_view(a: AnnotatorAgreement) -> AnnotatorAgreementView:
+    return AnnotatorAgreementView(**vars(a))
 
 
 def _annotated(services: Services, annotation: Annotation, rows: np.ndarray) -> Annotated:
