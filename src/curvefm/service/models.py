@@ -254,6 +254,14 @@ class AnnotationRequest(BaseModel):
     user: str = Field(description="the annotator who annotates the member once more, independently")
 
 
+class ManyAnnotationsRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    user: str = Field(description="the annotator who annotates the members once more, independently")
+    members: list[str] | None = Field(
+        None, description="the members (at most the collection's member count; default: every member)"
+    )
+
+
 class AnnotationView(BaseModel):
     member: str
     annotator: str | None = Field(description="whose annotation (the member's own session: its assignee)")

@@ -78,8 +78,8 @@ from curvefm.service.openapi import SchemaRoute
 from curvefm.service.owned import COLLECTIONS, LIMIT_HELP, OFFSET_HELP, TOTAL_HEADER, TOTAL_SCHEMA, discard_job, paged
 from curvefm.service.permissions import (
     REFUSALS,
+    annotator_named,
     capabilities,
-    check_annotator,
     check_collection,
     collection_for,
     refuse_locked,
@@ -395,7 +395,7 @@ def assign_member(
     owner, a manager or an admin. Once any member is assigned, annotators answer only the members assigned to
     them. Audited as ``collection.assign``."""
     check_collection(services, user, collection_id, "manage")
-    assignee = _annotator(services, collection_id, body.user) if body.user else None
+    assignee = annotator_named(services, collection_id, body.user) if body.user else None
     services.collections.records.assign(collection_id, {member_id: assignee.id if assignee else None})
     services.audit.record(user.name, "collection.assign", collection_id, {"members": [member_id], "user": body.user})
     (progress,) = [p for p in _assignments(services, collection_id).members if p.member == member_id]
@@ -408,7 +408,7 @@ def spread_members(collection_id: str, body: SpreadRequest, services: ServicesDe
     in order) goes to the annotator with the fewest members assigned so far (ties: the first named). As
     ``PUT .../assignee``: an owner, a manager or an admin; audited as ``collection.assign``."""
     check_collection(services, user, collection_id, "manage")
-    annotators = [_annotator(services, collection_id, name) for name in dict.fromkeys(body.annotators)]
+    annotators = [annotator_named(services, collection_id, name) for name in dict.fromkeys(body.annotators)]
     record, records = services.collections.record(collection_id), services.collections.records
     assigned = records.assignees(collection_id)
     if body.members:
@@ -451,15 +451,6 @@ def my_work(services: ServicesDep, user: CurrentUser) -> list[WorkItem]:
         )
         items.append(WorkItem(collection=record.id, collection_name=record.name, **progress.model_dump()))
     return sorted(items, key=lambda item: item.done)
-
-
-def _annotator(services: Services, collection_id: str, name: str) -> User:
-    """The user of that name, when they may answer in the collection (404: no such user; 409: they may not)."""
-    target = services.users.get(name)
-    if target is None:
-        raise NotFound(f"no user named '{shown(name)}'")
-    check_annotator(services, collection_id, target)
-    return target
 
 
 def _assignments(services: Services, collection_id: str) -> Assignments:

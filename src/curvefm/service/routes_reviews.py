@@ -26,7 +26,7 @@ from curvefm.collection import (
     by_annotator,
     mean_of_known,
 )
-from curvefm.errors import Conflict, NotFound, shown
+from curvefm.errors import Conflict, InvalidInput
 from curvefm.geometry import farthest_point_sampling
 from curvefm.pointwise import pointwise_from_both
 from curvefm.records.collections import Annotation, Review, ReviewState
@@ -39,13 +39,14 @@ from curvefm.service.models import (
     AnnotationView,
     AnnotatorAgreementView,
     CurveEndsAgreement,
+    ManyAnnotationsRequest,
     MemberAgreement,
     MemberReview,
     PairAgreementView,
     ReviewRequest,
 )
 from curvefm.service.openapi import SchemaRoute
-from curvefm.service.permissions import check_annotator, check_collection
+from curvefm.service.permissions import annotator_named, check_collection
 from curvefm.webhooks import WebhookEvent
 
 router = APIRouter(
@@ -149,10 +150,7 @@ def add_annotation(
     409 for a user who may not answer in the collection, or who annotates the member already (its assignee does
     in its own session). Audited as ``collection.annotate``."""
     check_collection(services, user, collection_id, "manage")
-    target = services.users.get(body.user)
-    if target is None:
-        raise NotFound(f"no user named '{shown(body.user)}'")
-    check_annotator(services, collection_id, target)
+    target = annotator_named(services, collection_id, body.user)
     services.collections.record(collection_id).member(member_id)
     if services.collections.records.assignees(collection_id).get(member_id, (None,))[0] == target.id:
         raise Conflict(f"that user is the assignee of member {member_id}; they annotate it in its own session")
@@ -161,6 +159,35 @@ def add_annotation(
     detail = {"member": member_id, "user": target.name, "session": session_id}
     services.audit.record(user.name, "collection.annotate", collection_id, detail)
     return AnnotationView(member=member_id, annotator=target.name, session=session_id, further=True)
+
+
+@router.post(
+    "/collections/{collection_id}/annotations",
+    status_code=201,
+    response_model=list[AnnotationView],
+    responses={**ERRORS, **error_responses(400)},
+)
+def add_annotations(
+    collection_id: str, body: ManyAnnotationsRequest, services: ServicesDep, user: CurrentUser
+) -> list[AnnotationView]:
+    """Ask an annotator for a further annotation of many members at once (``members``, by default every member):
+    the members they annotate already or are the assignee of are skipped; at most the collection's member count
+    named (400 beyond, 404 for an unknown member). Returns the annotations made, members in order; as ``POST
+    .../members/{member}/annotations`` otherwise (who may ask, the quota, the audit, one entry a member)."""
+    check_collection(services, user, collection_id, "manage")
+    target = annotator_named(services, collection_id, body.user)
+    record, records = services.collections.record(collection_id), services.collections.records
+    if body.members is not None and len(body.members) > len(record.members):
+        raise InvalidInput(f"name at most {len(record.members)} members, the collection's member count")
+    named = {record.member(member_id).id for member_id in body.members} if body.members is not None else None
+    theirs = {a.member_id for a in records.annotations(collection_id) if a.user_id == target.id}
+    todo = [m.id for m in record.members if (named is None or m.id in named) and m.id not in theirs]
+    with services.quotas.admit(user, "sessions", count=len(todo)) as conn:
+        made = [(m, services.collections.add_annotation(collection_id, m, target.id, conn)) for m in todo]
+    for member_id, session_id in made:
+        detail = {"member": member_id, "user": target.name, "session": session_id}
+        services.audit.record(user.name, "collection.annotate", collection_id, detail)
+    return [AnnotationView(member=m, annotator=target.name, session=s, further=True) for m, s in made]
 
 
 @router.get("/collections/{collection_id}/annotations", response_model=list[AnnotationView], responses=ERRORS)
