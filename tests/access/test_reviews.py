@@ -158,6 +158,13 @@ def test_ask_for_further_annotations_of_many_members_at_once(project):
     listed = abe.get(f"{base}/annotations").raise_for_status().json()
     assert [(a["member"], a["annotator"]) for a in listed if a["further"]] == [("m2", "ann"), ("m3", "abe")]
     assert ann.post(f"{base}/members/m2/curves", params={"annotator": "ann"}, json=ANSWER).status_code == 201
+    work = ann.get("/me/work").raise_for_status().json()  # not done first: m3, then m1 and the further m2
+    assert [(w["member"], w["further"], w["done"]) for w in work] == [
+        ("m3", False, False),
+        ("m1", False, True),
+        ("m2", True, True),
+    ]
+    assert work[2]["session"] == made.json()[0]["session"] and work[2]["review"] == "open"
 
     refused(mia.post(f"{base}/annotations", json={"user": "abe", "members": ["m1"] * 4}), 400, "at most 3", "count")
     refused(mia.post(f"{base}/annotations", json={"user": "abe", "members": ["m9"]}), 404, "m9")

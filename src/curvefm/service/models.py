@@ -335,6 +335,9 @@ class Assignments(BaseModel):
 class WorkItem(MemberProgress):
     collection: str
     collection_name: str
+    further: bool = Field(
+        False, description="a further annotation of the member asked of you (double annotation), in its session"
+    )
 
 
 class UserInfo(BaseModel):

@@ -436,7 +436,8 @@ def get_assignments(collection_id: str, services: ServicesDep, user: CurrentUser
 
 @router.get("/me/work", response_model=list[WorkItem])
 def my_work(services: ServicesDep, user: CurrentUser) -> list[WorkItem]:
-    """The members assigned to you in every collection you may still read: those not done first (the first is
+    """The members assigned to you in every collection you may still read, and the further annotations of members
+    asked of you (``further``: answer them in their ``session``, not reviewed): those not done first (the first is
     what is next), the most recently changed collection first, members in order."""
     items, states = [], ReviewStates(services)
     for work in services.collections.records.work(user.id):
@@ -446,10 +447,12 @@ def my_work(services: ServicesDep, user: CurrentUser) -> list[WorkItem]:
         record = services.collections.record(work.collection_id)
         names = services.shapes.names([work.shape])
         shape_name = names.get(work.shape) or work.shape[:12]
-        progress = _progress(
-            record, work.member_id, session, user.name, shape_name, states.of(record.id, work.member_id)
+        review: ReviewState = "open" if work.further else states.of(record.id, work.member_id)
+        progress = _progress(record, work.member_id, session, user.name, shape_name, review)
+        item = WorkItem(
+            collection=record.id, collection_name=record.name, further=work.further, **progress.model_dump()
         )
-        items.append(WorkItem(collection=record.id, collection_name=record.name, **progress.model_dump()))
+        items.append(item)
     return sorted(items, key=lambda item: item.done)
 
 
