@@ -85,7 +85,7 @@ from curvefm.service.permissions import (
     refuse_locked,
     session_for,
 )
-from curvefm.service.routes_reviews import review_view
+from curvefm.service.routes_reviews import agreement_report, review_view
 from curvefm.service.routes_sessions import IfMatch, converter_params, expected_revision
 from curvefm.service.routes_shapes import store_upload
 from curvefm.session import BasisNeed, SessionRecord, basis_available
@@ -574,11 +574,15 @@ def get_archive(
     """All maps of a finished run. ``npz``: ``<member>/C_template_to_member`` and ``C_member_to_template``
     (k x k), ``<member>/map_member_to_template`` (template vertex of each member vertex, file ids, -1 for none)
     and ``map_template_to_member``, and ``summary.json`` (members, shapes, sessions, quality figures). ``zip``:
-    the same as ``<member>/<name>.txt`` files. 409 names the members still pending or failed."""
+    the same as ``<member>/<name>.txt`` files. When the collection has double annotations, ``summary.json``
+    holds the agreement report too (``agreement``, as ``GET .../agreement``; 409 while a basis it needs is not
+    ready). 409 names the members still pending or failed."""
     record = collection_for(services, user, collection_id, "read")
     run, maps = _maps(services, record, run_id)
     out = io.BytesIO()
-    (write_npz if kind == "npz" else write_zip)(out, maps, archive_summary(record, run, maps))
+    doubled = any(a.further for a in services.collections.records.annotations(collection_id))
+    agreement = agreement_report(services, record).model_dump() if doubled else None
+    (write_npz if kind == "npz" else write_zip)(out, maps, archive_summary(record, run, maps, agreement))
     filename = f"collection_{collection_id}_{run_id}.{kind}"
     headers = {"Content-Disposition": f'attachment; filename="{filename}"'}
     return Response(out.getvalue(), media_type=ARCHIVE_TYPES[kind], headers=headers)

@@ -211,9 +211,13 @@ def get_agreement(collection_id: str, services: ServicesDep, user: CurrentUser) 
     member the mean over its pairs, flagged above ``CURVEFM_AGREEMENT_THRESHOLD``; and the project's means. 409
     while a basis it needs is not ready. Whoever may read the collection."""
     check_collection(services, user, collection_id, "read")
-    record = services.collections.record(collection_id)
+    return agreement_report(services, services.collections.record(collection_id))
+
+
+def agreement_report(services: Services, record: CollectionRecord) -> AgreementReport:
+    """The agreement between the collection's annotators (:func:`get_agreement`)."""
     by_member: dict[str, list[Annotation]] = {}
-    for annotation in services.collections.records.annotations(collection_id):
+    for annotation in services.collections.records.annotations(record.id):
         if services.sessions.record(annotation.session_id).curves:
             by_member.setdefault(annotation.member_id, []).append(annotation)
     twice = {member: annotations for member, annotations in by_member.items() if len(annotations) > 1}
