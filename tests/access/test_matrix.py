@@ -260,6 +260,9 @@ RULES: dict[tuple[str, str], Rule] = {
         lambda w: Call({"collection_id": w.fresh_collection(), "member_id": "m1"}, json={"user": TEST_USER}),
         other=404,
     ),
+    ("post", "/collections/{collection_id}/annotations"): Rule(
+        lambda w: Call(collection(w), json={"user": TEST_USER}), other=404
+    ),
     ("get", "/collections/{collection_id}/annotations"): Rule(lambda w: Call(collection(w)), other=404),
     ("get", "/collections/{collection_id}/agreement"): Rule(lambda w: Call(collection(w)), other=404),
     ("post", "/collections/{collection_id}/runs"): Rule(

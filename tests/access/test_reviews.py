@@ -143,3 +143,38 @@ def test_bad_review_requests_are_refused_with_4xx(project):
     refused(review(users["rita"], base, "m9", "accept"), 404, "m9")
     refused(submit(lab.owner, base, "m9"), 404, "m9")
     refused(review(users["rita"], "/collections/nope", "m1", "accept"), 404)
+
+
+def test_ask_for_further_annotations_of_many_members_at_once(project):
+    lab, users, base = project
+    mia, ann, abe = users["mia"], users["ann"], users["abe"]
+    # ann is the assignee of m1 and m3, abe of m2
+    made = mia.post(f"{base}/annotations", json={"user": "ann"})
+    assert made.status_code == 201, made.text
+    assert [(a["member"], a["annotator"], a["further"]) for a in made.json()] == [("m2", "ann", True)]
+    assert mia.post(f"{base}/annotations", json={"user": "ann"}).json() == []  # all annotated by ann already
+    chosen = mia.post(f"{base}/annotations", json={"user": "abe", "members": ["m3", "m2", "m3"]})
+    assert [a["member"] for a in chosen.raise_for_status().json()] == ["m3"]  # m2 is abe's own, m3 once
+    listed = abe.get(f"{base}/annotations").raise_for_status().json()
+    assert [(a["member"], a["annotator"]) for a in listed if a["further"]] == [("m2", "ann"), ("m3", "abe")]
+    assert ann.post(f"{base}/members/m2/curves", params={"annotator": "ann"}, json=ANSWER).status_code == 201
+    work = ann.get("/me/work").raise_for_status().json()  # not done first: m3, then m1 and the further m2
+    assert [(w["member"], w["further"], w["done"]) for w in work] == [
+        ("m3", False, False),
+        ("m1", False, True),
+        ("m2", True, True),
+    ]
+    assert work[2]["session"] == made.json()[0]["session"] and work[2]["review"] == "open"
+
+    refused(mia.post(f"{base}/annotations", json={"user": "abe", "members": ["m1"] * 4}), 400, "at most 3", "count")
+    refused(mia.post(f"{base}/annotations", json={"user": "abe", "members": ["m9"]}), 404, "m9")
+    refused(mia.post(f"{base}/annotations", json={"user": "zed"}), 404, "zed")
+    refused(mia.post(f"{base}/annotations", json={"user": "vic"}), 409)  # a viewer may not answer
+    refused(ann.post(f"{base}/annotations", json={"user": "abe"}), 403)
+    refused(lab.other.post(f"{base}/annotations", json={"user": "abe"}), 404)
+    assert mia.post(f"{base}/annotations", json={"user": "abe", "x": 1}).status_code == 422
+    events = [e for e in audit_of(lab.api.data_dir).read(limit=1000) if e["action"] == "collection.annotate"]
+    assert [(e["user"], e["detail"]["member"], e["detail"]["user"]) for e in events] == [
+        ("mia", "m2", "ann"),
+        ("mia", "m3", "abe"),
+    ]

@@ -236,9 +236,10 @@ def test_a_member_is_reviewed_run_when_accepted_and_annotated_twice(client, api,
     s = client.session(*shape_ids, k=K)
     s.add_curve(*CURVES[0])
     c = client.collection(shape_ids[0], from_session=s.id, k=K, name="reviewed")
-    tokens = {name: add_user(api.data_dir, name) for name in ("rhea", "abel")}
+    tokens = {name: add_user(api.data_dir, name) for name in ("rhea", "abel", "ada")}
     c.grant("rhea", "reviewer")
     c.grant("abel", "annotator")
+    c.grant("ada", "annotator")
     assert c.submit("m1")["state"] == "submitted"
     with Client(api.url, token=tokens["rhea"]) as rhea:
         reviewed = rhea.open_collection(c.id)
@@ -253,6 +254,8 @@ def test_a_member_is_reviewed_run_when_accepted_and_annotated_twice(client, api,
     with Client(api.url, token=tokens["abel"]) as abel:
         abel.open_collection(c.id).answer("m1", "t1", CURVES[1][1], annotator="abel")
     assert [(a["annotator"], a["further"]) for a in c.annotations()] == [(None, False), ("abel", True)]
+    assert c.annotate_many("abel") == []  # abel annotates m1 already
+    assert [(a["member"], a["annotator"]) for a in c.annotate_many("ada", ["m1"])] == [("m1", "ada")]
     (member,) = c.agreement()["members"]
     assert member["member"] == "m1" and member["pairs"][0]["curves"][0]["template_curve"] == "t1"
     assert member["pairs"][0]["curves"][0]["start"] > 0  # the two answers start at different vertices

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 from support.shapes import ellipsoid
 
-from curvefm.collection import Annotated, agreement
+from curvefm.collection import Annotated, agreement, by_annotator
 from curvefm.geometry import build_mesh, pair_geodesic_distances
 
 
@@ -38,3 +38,19 @@ def test_images_on_different_components_are_counted_not_averaged():
     assert result.unreachable == 1 and result.map_distance is not None and result.map_distance > 0
     assert result.curves[0].start is None and result.curves[0].end == 0
     assert result.endpoint_distance == 0
+
+
+def test_the_annotator_who_disagrees_with_everyone_stands_out():
+    member = ellipsoid(8, 16)
+    p2p = np.arange(0, 100, 3)
+    ann, abe = Annotated("ann", "s1", p2p, {}), Annotated("abe", "s2", p2p.copy(), {})
+    odd, nobody = Annotated("odd", "s3", p2p + 5, {}), Annotated(None, "s4", p2p.copy(), {})
+    pairs = [("m1", agreement(x, y, member)) for x, y in ((ann, abe), (ann, odd), (abe, odd))]
+    pairs += [("m2", agreement(ann, odd, member)), ("m2", agreement(nobody, odd, member))]
+    figures = {a.annotator: a for a in by_annotator(pairs)}
+    assert list(figures) == ["abe", "ann", "odd"]  # by name; an unassigned annotation is no one's
+    assert (figures["ann"].members, figures["abe"].members, figures["odd"].members) == (2, 1, 2)
+    far = pairs[1][1].map_distance
+    assert figures["odd"].map_distance == far and far > 0
+    assert np.isclose(figures["ann"].map_distance, 2 * far / 3) and np.isclose(figures["abe"].map_distance, far / 2)
+    assert figures["odd"].endpoint_distance is None  # no curves compared

@@ -81,6 +81,11 @@ def test_a_further_annotation_is_a_session_that_goes_with_its_member(repo):
     in_collections = {s.id for s in sessions.page(Viewer(repo["alice"].id), in_collection=True).items}
     assert in_collections == {repo["session"], further.id}
     assert not sessions.page(Viewer(repo["alice"].id), in_collection=False).items  # the session list leaves both out
+    collections.assign(cid, {"m1": repo["ann"].id})
+    assert [(w.member_id, w.session_id, w.further) for w in collections.work(repo["rita"].id)] == [
+        ("m1", further.id, True)
+    ]
+    assert [(w.session_id, w.further) for w in collections.work(repo["ann"].id)] == [(repo["session"], False)]
 
     collections.remove_member(cid, "m1")
     for session_id in (further.id, repo["session"]):

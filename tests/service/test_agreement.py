@@ -5,6 +5,9 @@ same measures computed here from the sessions' served maps, their stored bases a
 
 from __future__ import annotations
 
+import io
+import json
+
 import numpy as np
 
 from curvefm.geometry import farthest_point_sampling, load_mesh, pair_geodesic_distances
@@ -92,5 +95,15 @@ def test_double_annotation_agreement_against_a_hand_computation(processes, tmp_p
     assert np.isclose(pair["map_distance"], map_by_hand, rtol=1e-6), (pair["map_distance"], map_by_hand)
     assert 0 < map_by_hand < 0.1  # both near the identity, not the same map
     assert np.isclose(report["map_distance"], map_by_hand) and report["flagged"] == []
+    figures = {a["annotator"]: a for a in report["annotators"]}
+    assert list(figures) == ["abe", "ann"] and all(a["members"] == 1 for a in figures.values())
+    for figure in figures.values():
+        assert np.isclose(figure["map_distance"], map_by_hand)
+        assert np.isclose(figure["endpoint_distance"], by_hand.mean())
 
     assert api.client_for("oscar").get(f"{base}/agreement").status_code == 404
+
+    run = owner.post(f"{base}/runs", json={"converter": "nearest-neighbor"}).raise_for_status().json()
+    assert [api.wait_job(m["job"])["state"] for m in run["members"]] == ["finished"]
+    archive = np.load(io.BytesIO(owner.get(f"{base}/runs/{run['id']}/archive.npz").raise_for_status().content))
+    assert json.loads(str(archive["summary.json"]))["agreement"] == report  # the archive's summary carries it

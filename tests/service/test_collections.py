@@ -86,6 +86,7 @@ def test_collection_end_to_end_on_two_workers(processes, tmp_path, redis_url, re
     archive = np.load(io.BytesIO(client.get(f"/collections/{cid}/runs/{run['id']}/archive.npz").content))
     summary = json.loads(str(archive["summary.json"]))
     assert [m["member"] for m in summary["members"]] == ["m1", "m2"]
+    assert "agreement" not in summary  # no member is annotated twice
     for member in view["members"]:
         session_map = client.get(f"/sessions/{member['session']}/map").json()
         C = archive[f"{member['id']}/C_template_to_member"]

@@ -278,15 +278,16 @@ def test_a_member_is_submitted_sent_back_and_accepted_in_the_panel(browser, serv
 
 def test_a_manager_assigns_a_member_by_hand_asks_a_second_annotation_and_sees_agreement(browser, served):
     """The owner assigns m1 to one annotator with the per-member control, asks another for a further annotation of
-    it (both land in the API), and, once both annotations have curves, the Agreement section lists m1 with the
-    report's distance; before that it shows its empty state."""
+    it (both land in the API; the other finds it in their work, marked as a further annotation), and, once both
+    annotations have curves, the Agreement section lists m1 with the report's distance; before that it shows its
+    empty state."""
     api, view = served
     template, shape = view["collection"]["template"], view["members"][0]["shape"]
     body = {"name": "agreed", "template": template, "curves": TEMPLATE_CURVES, "members": [shape], "k": K}
     made = api.client.post("/collections", json=body).raise_for_status().json()
     collection_id, base = made["collection"]["id"], f"/collections/{made['collection']['id']}"
-    for name in ("ann", "bo"):
-        add_user(api.data_dir, name)
+    tokens = {name: add_user(api.data_dir, name) for name in ("ann", "bo")}
+    for name in tokens:
         api.client.put(f"{base}/roles/{name}", json={"role": "annotator"}).raise_for_status()
     page = browser.new_context(viewport=VIEWPORT).new_page()
     errors = []
@@ -309,6 +310,12 @@ def test_a_manager_assigns_a_member_by_hand_asks_a_second_annotation_and_sees_ag
     page.wait_for_selector(".toast:has-text('bo now annotates member m1')")
     annotations = api.client.get(f"{base}/annotations").json()
     assert [(a["annotator"], a["further"]) for a in annotations] == [("ann", False), ("bo", True)]
+    asked = browser.new_context(viewport=VIEWPORT).new_page()  # bo finds it in their work, marked as such
+    asked.on("pageerror", lambda error: errors.append(str(error)))
+    open_session(asked, api.url, annotations[1]["session"], token=tokens["bo"])
+    asked.click("#collections-panel summary")
+    work = f'#my-work li[data-collection="{collection_id}"][data-member="m1"][data-further="true"]'
+    assert asked.text_content(work) == "next: agreed · ellipsoid (m1) · 0/2 curves · further annotation"
 
     page.click("#show-agreement")
     page.wait_for_selector("#agreement-summary:has-text('no member is annotated twice')")

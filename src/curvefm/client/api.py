@@ -511,6 +511,12 @@ class Collection:
         annotation); returns it (``session``: where they answer, or :meth:`answer` with ``annotator=user``)."""
         return self.client.json("POST", f"{self.path}/members/{member}/annotations", json={"user": user})
 
+    def annotate_many(self, user: str, members: list[str] | None = None) -> list[dict[str, Any]]:
+        """Ask the annotator named ``user`` for further annotations of ``members`` (default: every member), but
+        those they annotate already or are the assignee of; returns the annotations made."""
+        body: dict[str, Any] = {"user": user} | ({"members": members} if members is not None else {})
+        return self.client.json("POST", f"{self.path}/annotations", json=body)
+
     def annotations(self) -> list[dict[str, Any]]:
         """Every member's annotations (its own session first, then the further ones)."""
         return self.client.json("GET", f"{self.path}/annotations")

@@ -12,7 +12,15 @@ run's maps come as one archive, member-to-member maps composed through the templ
 * ``agreement``: how far two annotators' answers on a member lie apart (double annotation).
 """
 
-from curvefm.collection.agreement import Annotated, CurveEnds, PairAgreement, agreement
+from curvefm.collection.agreement import (
+    Annotated,
+    AnnotatorAgreement,
+    CurveEnds,
+    PairAgreement,
+    agreement,
+    by_annotator,
+    mean_of_known,
+)
 from curvefm.collection.archive import MemberMaps, composed, write_npz, write_zip
 from curvefm.collection.composition import compose_functional, compose_pointwise
 from curvefm.collection.editing import CollectionEditor, SubmitRefine
@@ -39,9 +47,12 @@ from curvefm.collection.record import (
 
 __all__ = [
     "Annotated",
+    "AnnotatorAgreement",
     "CurveEnds",
     "PairAgreement",
     "agreement",
+    "by_annotator",
+    "mean_of_known",
     "CollectionCreate",
     "CollectionEditor",
     "CollectionRecord",

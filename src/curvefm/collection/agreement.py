@@ -5,7 +5,8 @@ vertices (``rows``, internal ids): for each, the graph-geodesic distance on the 
 images, averaged and divided by sqrt(area of the member). Their curves are compared where both answered a template
 curve: the geodesic distance between their starts and between their ends on the member, divided alike. Images on
 different components of the member have no distance: they are counted (``unreachable``), left out of the mean, and
-an endpoint distance is then None.
+an endpoint distance is then None. Per annotator (:func:`by_annotator`): the mean of their pairs' distances over
+the members they share with another annotator, so that one who disagrees with everyone stands out.
 """
 
 from __future__ import annotations
@@ -68,6 +69,39 @@ def agreement(a: Annotated, b: Annotated, member: Mesh) -> PairAgreement:
     mean = float(reached.mean() / scale) if reached.size else None
     curves = [CurveEnds(t, _finite(start), _finite(end)) for t, (start, end) in zip(shared, on_ends, strict=True)]
     return PairAgreement(a, b, mean, int(on_map.size - reached.size), curves)
+
+
+@dataclass(frozen=True)
+class AnnotatorAgreement:
+    annotator: str
+    members: int
+    """Members the annotator shares with another annotator (each with a pair compared)."""
+    map_distance: float | None
+    """The mean map distance of their pairs with the other annotators (None: none to compare)."""
+    endpoint_distance: float | None
+
+
+def by_annotator(pairs: list[tuple[str, PairAgreement]]) -> list[AnnotatorAgreement]:
+    """Per named annotator, by name, from ``(member, pair)``: the members they share and their pairs' means."""
+    shared: dict[str, list[tuple[str, PairAgreement]]] = {}
+    for member, pair in pairs:
+        for annotator in {pair.a.annotator, pair.b.annotator} - {None}:
+            shared.setdefault(str(annotator), []).append((member, pair))
+    return [
+        AnnotatorAgreement(
+            annotator,
+            len({member for member, _ in theirs}),
+            mean_of_known([pair.map_distance for _, pair in theirs]),
+            mean_of_known([pair.endpoint_distance for _, pair in theirs]),
+        )
+        for annotator, theirs in sorted(shared.items())
+    ]
+
+
+def mean_of_known(values: list[float | None]) -> float | None:
+    """The mean of the values that are not None (None: there are none)."""
+    known = [v for v in values if v is not None]
+    return float(np.mean(known)) if known else None
 
 
 def _finite(distance: float) -> float | None:

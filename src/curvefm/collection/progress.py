@@ -126,7 +126,11 @@ def run_maps(
     return maps
 
 
-def archive_summary(record: CollectionRecord, run: Run, maps: list[MemberMaps]) -> dict[str, Any]:
+def archive_summary(
+    record: CollectionRecord, run: Run, maps: list[MemberMaps], agreement: dict[str, Any] | None = None
+) -> dict[str, Any]:
+    """The archive's ``summary.json``; with ``agreement`` (the agreement report, given when the collection has
+    double annotations) under that key."""
     return {
         "collection": record.id,
         "name": record.name,
@@ -139,6 +143,7 @@ def archive_summary(record: CollectionRecord, run: Run, maps: list[MemberMaps]) 
         "members": [m.summary() for m in maps],
         "directions": "map_member_to_template[i] is the template vertex of member vertex i (0-based file ids, -1: a "
         "vertex of no face); C_template_to_member takes template coefficients to member coefficients",
+        **({"agreement": agreement} if agreement is not None else {}),
     }
 
 

@@ -20,7 +20,22 @@ from dataclasses import dataclass
 from functools import partial
 from typing import Literal
 
-from sqlalchemy import ColumnElement, Connection, Select, and_, delete, exists, false, func, insert, or_, select, update
+from sqlalchemy import (
+    ColumnElement,
+    Connection,
+    Select,
+    and_,
+    delete,
+    exists,
+    false,
+    func,
+    insert,
+    or_,
+    select,
+    true,
+    union_all,
+    update,
+)
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import aliased
 
@@ -82,13 +97,15 @@ class Standing:
 
 @dataclass(frozen=True)
 class Work:
-    """A member assigned to a user: its collection, its session and shape."""
+    """A member assigned to a user, or one they annotate once more: its collection, the session and shape."""
 
     collection_id: str
     collection_name: str
     member_id: str
     session_id: str
     shape: str
+    further: bool = False
+    """A further annotation of the member (double annotation), in a session of its own."""
 
 
 ReviewState = Literal["open", "submitted", "changes_requested", "accepted"]
@@ -331,24 +348,30 @@ class Collections:
                 tx.execute(insert(a), rows)
 
     def work(self, user_id: int) -> builtins.list[Work]:
-        """The members assigned to ``user_id`` in every collection, the most recently changed collection first,
-        members in order."""
-        a, member, c = m.Assignment, m.Member, m.Collection
+        """The members assigned to ``user_id`` and their further annotations (``further``) in every collection,
+        the most recently changed collection first, members in order (a member's own session first)."""
+        a, member, c, x = m.Assignment, m.Member, m.Collection, m.MemberAnnotation
+        columns = (
+            c.id.label("collection_id"),
+            c.name.label("collection_name"),
+            member.id.label("member_id"),
+            member.shape,
+            c.updated_at,
+            member.position,
+        )
+        own, further = (
+            select(*columns, session, flag.label("further"))
+            .select_from(table)
+            .join(member, (member.collection_id == table.collection_id) & (member.id == table.member_id))
+            .join(c, c.id == table.collection_id)
+            .where(table.user_id == user_id)
+            for table, session, flag in ((a, member.session_id, false()), (x, x.session_id, true()))
+        )
+        both = union_all(own, further).subquery()
+        order = (both.c.updated_at.desc(), both.c.collection_id, both.c.position, both.c.further)
+        fields = ("collection_id", "collection_name", "member_id", "session_id", "shape", "further")
         with self.db.read() as conn:
-            rows = conn.execute(
-                select(
-                    c.id.label("collection_id"),
-                    c.name.label("collection_name"),
-                    member.id.label("member_id"),
-                    member.session_id,
-                    member.shape,
-                )
-                .select_from(a)
-                .join(member, (member.collection_id == a.collection_id) & (member.id == a.member_id))
-                .join(c, c.id == a.collection_id)
-                .where(a.user_id == user_id)
-                .order_by(c.updated_at.desc(), c.id, member.position)
-            ).all()
+            rows = conn.execute(select(*(both.c[f] for f in fields)).order_by(*order)).all()
         return [Work(**row._asdict()) for row in rows]
 
     # -- review -------------------------------------------------------------------------------------------

@@ -254,6 +254,14 @@ class AnnotationRequest(BaseModel):
     user: str = Field(description="the annotator who annotates the member once more, independently")
 
 
+class ManyAnnotationsRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    user: str = Field(description="the annotator who annotates the members once more, independently")
+    members: list[str] | None = Field(
+        None, description="the members (at most the collection's member count; default: every member)"
+    )
+
+
 class AnnotationView(BaseModel):
     member: str
     annotator: str | None = Field(description="whose annotation (the member's own session: its assignee)")
@@ -291,8 +299,20 @@ class MemberAgreement(BaseModel):
     flagged: bool = Field(description="map_distance above the threshold: review it")
 
 
+class AnnotatorAgreementView(BaseModel):
+    annotator: str
+    members: int = Field(description="members they share with another annotator")
+    map_distance: float | None = Field(
+        description="the mean map distance of their pairs with the other annotators over those members (null: none)"
+    )
+    endpoint_distance: float | None = Field(description="the mean endpoint distance of those pairs")
+
+
 class AgreementReport(BaseModel):
     members: list[MemberAgreement] = Field(description="the members annotated twice or more, both with curves")
+    annotators: list[AnnotatorAgreementView] = Field(
+        description="per annotator, by name: how far their answers lie from the others' (who disagrees with everyone)"
+    )
     map_distance: float | None = Field(description="the mean over those members (null: none)")
     endpoint_distance: float | None = Field(description="the mean endpoint distance over their pairs")
     threshold: float = Field(description="CURVEFM_AGREEMENT_THRESHOLD, units of sqrt(area)")
@@ -315,6 +335,9 @@ class Assignments(BaseModel):
 class WorkItem(MemberProgress):
     collection: str
     collection_name: str
+    further: bool = Field(
+        False, description="a further annotation of the member asked of you (double annotation), in its session"
+    )
 
 
 class UserInfo(BaseModel):

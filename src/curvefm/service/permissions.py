@@ -29,7 +29,7 @@ from typing import Literal, TypeVar
 
 from curvefm.access import User
 from curvefm.collection import CollectionRecord, UnknownCollection
-from curvefm.errors import Conflict, CurvefmError, Forbidden, NotFound
+from curvefm.errors import Conflict, CurvefmError, Forbidden, NotFound, shown
 from curvefm.records.collections import Standing
 from curvefm.service.deps import Services, viewer
 from curvefm.session import SessionRecord, UnknownSession
@@ -146,6 +146,15 @@ def check_annotator(services: Services, collection_id: str, target: User) -> Non
             f"user '{target.name}' may not answer in collection {collection_id}; grant them the annotator role "
             "first (PUT .../roles/{user})"
         )
+
+
+def annotator_named(services: Services, collection_id: str, name: str) -> User:
+    """The user of that name, when they may answer in the collection (404: no such user; 409: they may not)."""
+    target = services.users.get(name)
+    if target is None:
+        raise NotFound(f"no user named '{shown(name)}'")
+    check_annotator(services, collection_id, target)
+    return target
 
 
 def may_answer(user: User, standing: Standing, held: frozenset[Need]) -> bool:

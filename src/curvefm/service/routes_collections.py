@@ -78,14 +78,14 @@ from curvefm.service.openapi import SchemaRoute
 from curvefm.service.owned import COLLECTIONS, LIMIT_HELP, OFFSET_HELP, TOTAL_HEADER, TOTAL_SCHEMA, discard_job, paged
 from curvefm.service.permissions import (
     REFUSALS,
+    annotator_named,
     capabilities,
-    check_annotator,
     check_collection,
     collection_for,
     refuse_locked,
     session_for,
 )
-from curvefm.service.routes_reviews import review_view
+from curvefm.service.routes_reviews import agreement_report, review_view
 from curvefm.service.routes_sessions import IfMatch, converter_params, expected_revision
 from curvefm.service.routes_shapes import store_upload
 from curvefm.session import BasisNeed, SessionRecord, basis_available
@@ -395,7 +395,7 @@ def assign_member(
     owner, a manager or an admin. Once any member is assigned, annotators answer only the members assigned to
     them. Audited as ``collection.assign``."""
     check_collection(services, user, collection_id, "manage")
-    assignee = _annotator(services, collection_id, body.user) if body.user else None
+    assignee = annotator_named(services, collection_id, body.user) if body.user else None
     services.collections.records.assign(collection_id, {member_id: assignee.id if assignee else None})
     services.audit.record(user.name, "collection.assign", collection_id, {"members": [member_id], "user": body.user})
     (progress,) = [p for p in _assignments(services, collection_id).members if p.member == member_id]
@@ -408,7 +408,7 @@ def spread_members(collection_id: str, body: SpreadRequest, services: ServicesDe
     in order) goes to the annotator with the fewest members assigned so far (ties: the first named). As
     ``PUT .../assignee``: an owner, a manager or an admin; audited as ``collection.assign``."""
     check_collection(services, user, collection_id, "manage")
-    annotators = [_annotator(services, collection_id, name) for name in dict.fromkeys(body.annotators)]
+    annotators = [annotator_named(services, collection_id, name) for name in dict.fromkeys(body.annotators)]
     record, records = services.collections.record(collection_id), services.collections.records
     assigned = records.assignees(collection_id)
     if body.members:
@@ -436,7 +436,8 @@ def get_assignments(collection_id: str, services: ServicesDep, user: CurrentUser
 
 @router.get("/me/work", response_model=list[WorkItem])
 def my_work(services: ServicesDep, user: CurrentUser) -> list[WorkItem]:
-    """The members assigned to you in every collection you may still read: those not done first (the first is
+    """The members assigned to you in every collection you may still read, and the further annotations of members
+    asked of you (``further``: answer them in their ``session``, not reviewed): those not done first (the first is
     what is next), the most recently changed collection first, members in order."""
     items, states = [], ReviewStates(services)
     for work in services.collections.records.work(user.id):
@@ -446,20 +447,13 @@ def my_work(services: ServicesDep, user: CurrentUser) -> list[WorkItem]:
         record = services.collections.record(work.collection_id)
         names = services.shapes.names([work.shape])
         shape_name = names.get(work.shape) or work.shape[:12]
-        progress = _progress(
-            record, work.member_id, session, user.name, shape_name, states.of(record.id, work.member_id)
+        review: ReviewState = "open" if work.further else states.of(record.id, work.member_id)
+        progress = _progress(record, work.member_id, session, user.name, shape_name, review)
+        item = WorkItem(
+            collection=record.id, collection_name=record.name, further=work.further, **progress.model_dump()
         )
-        items.append(WorkItem(collection=record.id, collection_name=record.name, **progress.model_dump()))
+        items.append(item)
     return sorted(items, key=lambda item: item.done)
-
-
-def _annotator(services: Services, collection_id: str, name: str) -> User:
-    """The user of that name, when they may answer in the collection (404: no such user; 409: they may not)."""
-    target = services.users.get(name)
-    if target is None:
-        raise NotFound(f"no user named '{shown(name)}'")
-    check_annotator(services, collection_id, target)
-    return target
 
 
 def _assignments(services: Services, collection_id: str) -> Assignments:
@@ -580,11 +574,15 @@ def get_archive(
     """All maps of a finished run. ``npz``: ``<member>/C_template_to_member`` and ``C_member_to_template``
     (k x k), ``<member>/map_member_to_template`` (template vertex of each member vertex, file ids, -1 for none)
     and ``map_template_to_member``, and ``summary.json`` (members, shapes, sessions, quality figures). ``zip``:
-    the same as ``<member>/<name>.txt`` files. 409 names the members still pending or failed."""
+    the same as ``<member>/<name>.txt`` files. When the collection has double annotations, ``summary.json``
+    holds the agreement report too (``agreement``, as ``GET .../agreement``; 409 while a basis it needs is not
+    ready). 409 names the members still pending or failed."""
     record = collection_for(services, user, collection_id, "read")
     run, maps = _maps(services, record, run_id)
     out = io.BytesIO()
-    (write_npz if kind == "npz" else write_zip)(out, maps, archive_summary(record, run, maps))
+    doubled = any(a.further for a in services.collections.records.annotations(collection_id))
+    agreement = agreement_report(services, record).model_dump() if doubled else None
+    (write_npz if kind == "npz" else write_zip)(out, maps, archive_summary(record, run, maps, agreement))
     filename = f"collection_{collection_id}_{run_id}.{kind}"
     headers = {"Content-Disposition": f'attachment; filename="{filename}"'}
     return Response(out.getvalue(), media_type=ARCHIVE_TYPES[kind], headers=headers)

@@ -17,8 +17,16 @@ from fastapi import APIRouter
 from sqlalchemy import Connection
 
 from curvefm.access import User
-from curvefm.collection import Annotated, CollectionRecord, PairAgreement, agreement
-from curvefm.errors import Conflict, NotFound, shown
+from curvefm.collection import (
+    Annotated,
+    AnnotatorAgreement,
+    CollectionRecord,
+    PairAgreement,
+    agreement,
+    by_annotator,
+    mean_of_known,
+)
+from curvefm.errors import Conflict, InvalidInput
 from curvefm.geometry import farthest_point_sampling
 from curvefm.pointwise import pointwise_from_both
 from curvefm.records.collections import Annotation, Review, ReviewState
@@ -29,14 +37,16 @@ from curvefm.service.models import (
     AgreementReport,
     AnnotationRequest,
     AnnotationView,
+    AnnotatorAgreementView,
     CurveEndsAgreement,
+    ManyAnnotationsRequest,
     MemberAgreement,
     MemberReview,
     PairAgreementView,
     ReviewRequest,
 )
 from curvefm.service.openapi import SchemaRoute
-from curvefm.service.permissions import check_annotator, check_collection
+from curvefm.service.permissions import annotator_named, check_collection
 from curvefm.webhooks import WebhookEvent
 
 router = APIRouter(
@@ -140,10 +150,7 @@ def add_annotation(
     409 for a user who may not answer in the collection, or who annotates the member already (its assignee does
     in its own session). Audited as ``collection.annotate``."""
     check_collection(services, user, collection_id, "manage")
-    target = services.users.get(body.user)
-    if target is None:
-        raise NotFound(f"no user named '{shown(body.user)}'")
-    check_annotator(services, collection_id, target)
+    target = annotator_named(services, collection_id, body.user)
     services.collections.record(collection_id).member(member_id)
     if services.collections.records.assignees(collection_id).get(member_id, (None,))[0] == target.id:
         raise Conflict(f"that user is the assignee of member {member_id}; they annotate it in its own session")
@@ -152,6 +159,35 @@ def add_annotation(
     detail = {"member": member_id, "user": target.name, "session": session_id}
     services.audit.record(user.name, "collection.annotate", collection_id, detail)
     return AnnotationView(member=member_id, annotator=target.name, session=session_id, further=True)
+
+
+@router.post(
+    "/collections/{collection_id}/annotations",
+    status_code=201,
+    response_model=list[AnnotationView],
+    responses={**ERRORS, **error_responses(400)},
+)
+def add_annotations(
+    collection_id: str, body: ManyAnnotationsRequest, services: ServicesDep, user: CurrentUser
+) -> list[AnnotationView]:
+    """Ask an annotator for a further annotation of many members at once (``members``, by default every member):
+    the members they annotate already or are the assignee of are skipped; at most the collection's member count
+    named (400 beyond, 404 for an unknown member). Returns the annotations made, members in order; as ``POST
+    .../members/{member}/annotations`` otherwise (who may ask, the quota, the audit, one entry a member)."""
+    check_collection(services, user, collection_id, "manage")
+    target = annotator_named(services, collection_id, body.user)
+    record, records = services.collections.record(collection_id), services.collections.records
+    if body.members is not None and len(body.members) > len(record.members):
+        raise InvalidInput(f"name at most {len(record.members)} members, the collection's member count")
+    named = {record.member(member_id).id for member_id in body.members} if body.members is not None else None
+    theirs = {a.member_id for a in records.annotations(collection_id) if a.user_id == target.id}
+    todo = [m.id for m in record.members if (named is None or m.id in named) and m.id not in theirs]
+    with services.quotas.admit(user, "sessions", count=len(todo)) as conn:
+        made = [(m, services.collections.add_annotation(collection_id, m, target.id, conn)) for m in todo]
+    for member_id, session_id in made:
+        detail = {"member": member_id, "user": target.name, "session": session_id}
+        services.audit.record(user.name, "collection.annotate", collection_id, detail)
+    return [AnnotationView(member=m, annotator=target.name, session=s, further=True) for m, s in made]
 
 
 @router.get("/collections/{collection_id}/annotations", response_model=list[AnnotationView], responses=ERRORS)
@@ -175,46 +211,50 @@ def get_agreement(collection_id: str, services: ServicesDep, user: CurrentUser) 
     member the mean over its pairs, flagged above ``CURVEFM_AGREEMENT_THRESHOLD``; and the project's means. 409
     while a basis it needs is not ready. Whoever may read the collection."""
     check_collection(services, user, collection_id, "read")
-    record = services.collections.record(collection_id)
+    return agreement_report(services, services.collections.record(collection_id))
+
+
+def agreement_report(services: Services, record: CollectionRecord) -> AgreementReport:
+    """The agreement between the collection's annotators (:func:`get_agreement`)."""
     by_member: dict[str, list[Annotation]] = {}
-    for annotation in services.collections.records.annotations(collection_id):
+    for annotation in services.collections.records.annotations(record.id):
         if services.sessions.record(annotation.session_id).curves:
             by_member.setdefault(annotation.member_id, []).append(annotation)
     twice = {member: annotations for member, annotations in by_member.items() if len(annotations) > 1}
     template = services.live.mesh(record.template, "template")
     rows = farthest_point_sampling(template, min(services.settings.agreement_points, template.n_vertices))
     threshold = services.settings.agreement_threshold
-    members = [_member_agreement(services, record, member, twice[member], rows, threshold) for member in twice]
-    pairs = [pair for member in members for pair in member.pairs]
+    compared = {member: _member_pairs(services, record, member, twice[member], rows) for member in twice}
+    members = [_member_agreement(member, pairs, threshold) for member, pairs in compared.items()]
+    annotators = by_annotator([(member, pair) for member, pairs in compared.items() for pair in pairs])
     return AgreementReport(
         members=members,
-        map_distance=_mean([m.map_distance for m in members]),
-        endpoint_distance=_mean([pair.endpoint_distance for pair in pairs]),
+        annotators=[_annotator_view(a) for a in annotators],
+        map_distance=mean_of_known([m.map_distance for m in members]),
+        endpoint_distance=mean_of_known([pair.endpoint_distance for pairs in compared.values() for pair in pairs]),
         threshold=threshold,
         points=len(rows),
         flagged=[m.member for m in members if m.flagged],
     )
 
 
-def _member_agreement(
-    services: Services,
-    record: CollectionRecord,
-    member_id: str,
-    annotations: list[Annotation],
-    rows: np.ndarray,
-    threshold: float,
-) -> MemberAgreement:
+def _member_pairs(
+    services: Services, record: CollectionRecord, member_id: str, annotations: list[Annotation], rows: np.ndarray
+) -> list[PairAgreement]:
     member = services.live.mesh(record.member(member_id).shape, "member")
     answers = [_annotated(services, a, rows) for a in annotations]
-    pairs = [_pair_view(agreement(a, b, member)) for a, b in combinations(answers, 2)]
-    distance = _mean([p.map_distance for p in pairs])
+    return [agreement(a, b, member) for a, b in combinations(answers, 2)]
+
+
+def _member_agreement(member_id: str, pairs: list[PairAgreement], threshold: float) -> MemberAgreement:
+    distance = mean_of_known([p.map_distance for p in pairs])
     flagged = distance is not None and distance > threshold
-    return MemberAgreement(member=member_id, pairs=pairs, map_distance=distance, flagged=flagged)
+    views = [_pair_view(p) for p in pairs]
+    return MemberAgreement(member=member_id, pairs=views, map_distance=distance, flagged=flagged)
 
 
-def _mean(values: list[float | None]) -> float | None:
-    known = [v for v in values if v is not None]
-    return float(np.mean(known)) if known else None
+def _annotator_view(a: AnnotatorAgreement) -> AnnotatorAgreementView:
+    return AnnotatorAgreementView(**vars(a))
 
 
 def _annotated(services: Services, annotation: Annotation, rows: np.ndarray) -> Annotated:

@@ -117,7 +117,8 @@ export function showAgreement(report) {
   );
 }
 
-/** "My work" (GET /me/work): the members assigned to the user, what is next first. */
+/** "My work" (GET /me/work): the members assigned to the user and the further annotations asked of them, what is
+ * next first. */
 export function showMyWork(items) {
   $("my-work-box").hidden = !items.length;
   $("my-work").replaceChildren(
@@ -129,7 +130,9 @@ export function showMyWork(items) {
       const next = at === 0 && !item.done ? "next: " : "";
       const label = `${next}${item.collection_name || item.collection} · ${item.shape_name} (${item.member})`;
       const review = item.review === "open" ? "" : ` · ${REVIEW_LABELS[item.review]}`;
-      entry.textContent = `${label} · ${item.curves_done}/${item.curves_total} curves${review}`;
+      const further = item.further ? " · further annotation" : "";
+      entry.dataset.further = item.further;
+      entry.textContent = `${label} · ${item.curves_done}/${item.curves_total} curves${review}${further}`;
       return entry;
     }),
   );
