@@ -77,17 +77,18 @@ def loaded_pair(pair: Pair, direction: str) -> LoadedPair:
 
 def scored_rows(run: Run, curves) -> np.ndarray:
     """Mask over the scorer's rows: not a curve's end, and a held-out landmark if the truth is sparse."""
-    scorer, truth = run.loaded.scorer, run.loaded.truth
-    ends = [path[i] for path, _ in curves for i in (0, -1)]
-    keep = ~np.isin(scorer.rows_M, ends)
+    scorer, truth = run.loaded.scorers["source"], run.loaded.truth
+    ends_M = [path[i] for path, _ in curves for i in (0, -1)]
+    ends_N = [path[i] for _, path in curves for i in (0, -1)]
+    keep = ~np.isin(scorer.rows_from, ends_M) & ~np.isin(scorer.partners[scorer.columns], ends_N)
     if not truth.dense:
-        keep &= np.isin(scorer.rows_M, held_out_landmarks(truth, 0))
+        keep &= np.isin(scorer.rows_from, held_out_landmarks(truth, 0))
     return keep
 
 
 def error(run: Run, C_NM: np.ndarray, rows: np.ndarray) -> float:
     shapes = run.loaded.shapes
-    return round(run.loaded.scorer(C_NM, shapes.basis_M, shapes.basis_N, rows).mean_area, 6)
+    return round(run.loaded.scorers["source"](C_NM, shapes.basis_M, shapes.basis_N, rows).mean_area, 6)
 
 
 def handed_out(solver: CombinedMapSolver, full_size_curves: int | None) -> np.ndarray:
@@ -148,7 +149,10 @@ def run_clicks(run: Run, count: int, figures: bool) -> dict:
     shapes = run.loaded.shapes
     curves = ground_truth_curves(shapes.mesh_M, shapes.mesh_N, run.loaded.truth, count, run.seed_vertex)
     solver_args = (shapes.mesh_M.vertices, shapes.basis_M, shapes.mesh_N.vertices, shapes.basis_N)
-    combined = CombinedMapSolver(*solver_args, k=DEFAULT_K, interactive=True, source_area=shapes.mesh_M.area)
+    # as a session builds it: the area for the size switch, the meshes for the curves' sides in the prior
+    combined = CombinedMapSolver(
+        *solver_args, k=DEFAULT_K, interactive=True, source_area=shapes.mesh_M.area, meshes=shapes.meshes
+    )
     curve_energy = CurveMapSolver(*solver_args, k=DEFAULT_K, alpha=DEFAULT_COMBINED_ALPHA, interactive=True)
     clicks = []
     for n, (path_M, path_N) in enumerate(curves, start=1):
