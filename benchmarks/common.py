@@ -56,6 +56,18 @@ def median_ms(fn, repeat: int) -> float:
     return 1e3 * statistics.median(times)
 
 
+def median_wall_and_cpu_ms(fn, repeat: int) -> tuple[float, float]:
+    """Median wall-clock and median CPU milliseconds of ``fn`` (CPU: all of the process's threads). On a machine
+    shared with other work the CPU time is the steadier of the two."""
+    walls, cpus = [], []
+    for _ in range(repeat):
+        wall, cpu = time.perf_counter(), time.process_time()
+        fn()
+        walls.append(time.perf_counter() - wall)
+        cpus.append(time.process_time() - cpu)
+    return 1e3 * statistics.median(walls), 1e3 * statistics.median(cpus)
+
+
 def bench_token(data: Path) -> str:
     """A token of the user ``bench`` on the data directory (made, or rotated when it exists)."""
     users = users_of(data)

@@ -33,18 +33,39 @@ def solver_with(pair, n_curves=3, **kwargs):
     return solver, ids, paths
 
 
+def dense_k2_solve(G, B, lam_rows, lam_cols, alpha):
+    """The map minimising the energy from its dense k^2 x k^2 normal equations, columns of C stacked:
+    ``(I (x) G + alpha diag(vec D)) vec C = vec B``."""
+    k, n = B.shape
+    D = (lam_rows[:, None] - lam_cols[None, :]) ** 2
+    H = np.kron(np.eye(n), G) + alpha * np.diag(D.T.ravel())
+    return np.linalg.solve(H, B.T.ravel()).reshape(n, k).T
+
+
 def test_solution_is_the_minimiser_of_the_full_k2_system(pair):
     solver, _, _ = solver_with(pair, alpha=10.0)
     G_M, G_N, B = solver.normal_equations()
-    D = (solver.lam_N[:, None] - solver.lam_M[None, :]) ** 2
-    # dense (k^2 x k^2) normal equations of E, columns of C stacked: (I (x) G + alpha diag(vec D)) vec C = vec B
-    H = np.kron(np.eye(K), G_N) + solver.alpha * np.diag(D.T.ravel())
-    dense = np.linalg.solve(H, B.T.ravel()).reshape(K, K).T
+    dense = dense_k2_solve(G_N, B, solver.lam_N, solver.lam_M, solver.alpha)
     np.testing.assert_allclose(solver.C_MN, dense, atol=1e-8 * np.abs(dense).max())
     # and it is a minimum: the energy rises in random directions
     E0 = solver.energy(solver.C_MN)
     rng = np.random.default_rng(0)
     assert all(solver.energy(solver.C_MN + 1e-3 * rng.standard_normal((K, K))) > E0 for _ in range(5))
+
+
+def test_an_update_gives_both_maps_of_the_dense_k2_system(pair):
+    """After an edit's update (a curve added, another removed) both maps are those of the dense solve."""
+    M, *_ = pair
+    solver, ids, _ = solver_with(pair, alpha=10.0)
+    added = curves_on(M, [ENDPOINTS[4]])[0]
+    solver.add_curve(added, added, weight=2.0)
+    solver.remove_curve(ids[0])
+    G_M, G_N, B = solver.normal_equations()
+    for C, wanted in (
+        (solver.C_MN, dense_k2_solve(G_N, B, solver.lam_N, solver.lam_M, solver.alpha)),
+        (solver.C_NM, dense_k2_solve(G_M, B.T, solver.lam_M, solver.lam_N, solver.alpha)),
+    ):
+        np.testing.assert_allclose(C, wanted, atol=1e-8 * np.abs(wanted).max())
 
 
 def test_paper_conjugate_gradients_reach_the_same_minimiser(pair):

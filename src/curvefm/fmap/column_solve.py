@@ -16,6 +16,22 @@ inverse of an "anchor" column's matrix, one anchor per 15 columns) needs 10-80 s
 residual of 1e-12, which is what an error below 1e-8 of ``max |C|`` takes on systems from real curves; at
 ``k = 120`` it ran at 0.5-1.4x the speed of this loop (0.5-0.8x at ``alpha`` = 10-100), so it was dropped.
 
+The floor (2026-11-28, AMD EPYC, 2 cores, loaded). An edit's update at k = 120 spends about 90% of its CPU time in
+these 2k factorisations (both directions); restricting the curve and summing its products take 0.2-0.3 ms. One
+``dposv`` of a 120 x 120 system takes 34-37 us (about 17 GFlop/s, a third of what ``dgemm`` reaches at that size),
+so the 240 factorisations cost 8.1-8.5 ms of CPU time, 4.2 ms at best on two idle cores. The paper's CG, warm-started,
+needs 557-583 iterations (both directions), one k x k product each: 55-60 ms of CPU time. Per-column factorisations
+therefore cannot make the update more than about 14x faster than this CG on two cores (``speedup_bound_two_cores`` in
+benchmarks/bench_curve_update.py).
+What else was tried: a low-rank update of the factors when a curve is added does not exist, because the curve weights
+are normalised by their sum (every edit rescales all curve terms against the commutativity diagonal, a full-rank
+change) and one curve's term has rank 100 (its samples) of 120; NumPy's batched ``cholesky`` (one GIL-free call per
+direction) ran at half the speed of this loop; blocked factorisations from ``dpotrf``/``dtrsm``/``dsyrk`` through the
+same pointers were 1.5x slower (call overheads at this size); systems assembled in chunks of 8 and shared between the
+two threads through one queue changed nothing measurable (load 14-21); OpenBLAS's other kernels
+(``OPENBLAS_CORETYPE``) neither. The 2k linearisation above: 3.4 ms per direction for its Hessenberg form (before the
+k shifted solves), 17 ms for its Schur form.
+
 Why ctypes. SciPy's f2py wrappers of ``dposv``/``dpotrf`` hold the GIL, so the two map directions could not
 run side by side on two cores. ``scipy.linalg.cython_lapack`` exports the same LAPACK functions as C function
 pointers; a call through ``ctypes`` releases the GIL, and it also skips the wrappers' argument copies. If the
