@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from curvefm.collection import CollectionRecord, MemberStatus
 from curvefm.fmap import DEFAULT_K
@@ -247,6 +247,44 @@ class ReviewRequest(BaseModel):
         description="accept a submitted member, or send a submitted or accepted member back to its annotator"
     )
     comment: str = Field("", max_length=2000, description="what to change (shown to the annotator)")
+
+
+class CommentCreate(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    text: str = Field(min_length=1, description="what the comment says")
+    side: Literal["source", "target"] | None = Field(
+        None, description="the shape it points at: source (the template) or target (the member's shape)"
+    )
+    vertex: int | None = Field(
+        None, ge=0, le=2**31 - 1, description="the vertex (a file id, 0-based) of that shape it points at"
+    )
+    reply_to: str | None = Field(
+        None, max_length=64, description="a comment of the thread this one answers (then without side and vertex)"
+    )
+
+    @model_validator(mode="after")
+    def _placed(self) -> CommentCreate:
+        if (self.reply_to is None) != (self.side is not None and self.vertex is not None):
+            raise ValueError("give side and vertex for a new thread, or reply_to (alone) for a reply")
+        return self
+
+
+class CommentResolve(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    resolved: bool = Field(description="true: the thread is resolved; false: open it again")
+
+
+class ReviewCommentView(BaseModel):
+    id: str
+    member: str
+    side: Literal["source", "target"] = Field(description="source: the template; target: the member's shape")
+    vertex: int = Field(description="the vertex it points at (a file id)")
+    text: str
+    author: str | None = Field(description="who wrote it (null: a removed user)")
+    created_at: float = Field(description="when, UNIX seconds")
+    reply_to: str | None = Field(None, description="the first comment of the thread it answers (null: it starts one)")
+    resolved_by: str | None = Field(None, description="who resolved the thread (on its first comment; null: open)")
+    resolved_at: float | None = None
 
 
 class AnnotationRequest(BaseModel):
