@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field
 
 from curvefm.collection import CollectionRecord, MemberStatus
 from curvefm.fmap import DEFAULT_K
@@ -249,24 +249,29 @@ class ReviewRequest(BaseModel):
     comment: str = Field("", max_length=2000, description="what to change (shown to the annotator)")
 
 
-class CommentCreate(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    text: str = Field(min_length=1, description="what the comment says")
-    side: Literal["source", "target"] | None = Field(
-        None, description="the shape it points at: source (the template) or target (the member's shape)"
-    )
-    vertex: int | None = Field(
-        None, ge=0, le=2**31 - 1, description="the vertex (a file id, 0-based) of that shape it points at"
-    )
-    reply_to: str | None = Field(
-        None, max_length=64, description="a comment of the thread this one answers (then without side and vertex)"
-    )
+COMMENT_TEXT = Field(pattern=r"^[^\x00]*[^\x00\s][^\x00]*$", description="what the comment says (not blank)")
 
-    @model_validator(mode="after")
-    def _placed(self) -> CommentCreate:
-        if (self.reply_to is None) != (self.side is not None and self.vertex is not None):
-            raise ValueError("give side and vertex for a new thread, or reply_to (alone) for a reply")
-        return self
+
+class NewThread(BaseModel):
+    """A comment that starts a thread, pinned to a vertex of one shape of the member's session."""
+
+    model_config = ConfigDict(extra="forbid")
+    text: str = COMMENT_TEXT
+    side: Literal["source", "target"] = Field(
+        description="the shape it points at: source (the template) or target (the member's shape)"
+    )
+    vertex: int = Field(ge=0, le=2**31 - 1, description="the vertex (a file id, 0-based) of that shape it points at")
+
+
+class CommentReply(BaseModel):
+    """A comment that answers another: it joins that comment's thread, at its vertex."""
+
+    model_config = ConfigDict(extra="forbid")
+    text: str = COMMENT_TEXT
+    reply_to: str = Field(max_length=64, description="a comment of the thread this one answers")
+
+
+CommentCreate = NewThread | CommentReply
 
 
 class CommentResolve(BaseModel):

@@ -73,7 +73,8 @@ LIMITED_FIELDS: dict[str, dict[str, tuple[str, ...]]] = {
     "CurveSpec": {"source": VERTEX_LISTS, "target": VERTEX_LISTS},
     "TemplateCurveSpec": {"waypoints": VERTEX_LISTS},
     "AnswerRequest": {"target": VERTEX_LISTS},
-    "CommentCreate": {"text": ("max_comment_chars",)},
+    "NewThread": {"text": ("max_comment_chars",)},
+    "CommentReply": {"text": ("max_comment_chars",)},
 }
 """Request schemas (components) -> their fields bounded by configured limits (settings)."""
 LIMIT_KEY = "x-curvefm-limit"

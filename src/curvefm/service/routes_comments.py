@@ -18,7 +18,7 @@ from curvefm.records.comments import Comment, NewComment
 from curvefm.service.auth import AUTHENTICATED, CurrentUser
 from curvefm.service.deps import Services, ServicesDep, viewer
 from curvefm.service.errors import error_responses
-from curvefm.service.models import CommentCreate, CommentResolve, ReviewCommentView
+from curvefm.service.models import CommentCreate, CommentReply, CommentResolve, ReviewCommentView
 from curvefm.service.openapi import SchemaRoute
 from curvefm.service.permissions import check_collection, may_answer
 
@@ -60,10 +60,7 @@ def add_comment(
     an owner or an admin. A reply (``reply_to``) joins that comment's thread at its vertex: they and whoever may
     answer the member (its annotator). Text up to ``CURVEFM_MAX_COMMENT_CHARS`` (422 past it), at most
     ``CURVEFM_MAX_REVIEW_COMMENTS`` comments a member (413). Audited as ``collection.comment``."""
-    record = _discussion(services, user, collection_id, member_id, "reply" if body.reply_to else "start")
-    if body.side is not None and body.vertex is not None:
-        _check_vertex(services, record, member_id, body.side, body.vertex)
-    new = NewComment(body.text, body.side or "target", body.vertex or 0, body.reply_to)
+    new = _checked_comment(services, user, collection_id, member_id, body)
     comment = services.comments.add(collection_id, member_id, new, user.id, services.settings.max_review_comments)
     detail = {"member": member_id, "comment": comment.id, "side": comment.side, "vertex": comment.vertex}
     services.audit.record(user.name, "collection.comment", collection_id, {**detail, "reply_to": comment.reply_to})
@@ -98,6 +95,18 @@ def delete_comment(
         user.name, "collection.comment_delete", collection_id, {"member": member_id, "comment": comment_id}
     )
     return Response(status_code=204)
+
+
+def _checked_comment(
+    services: Services, user: User, collection_id: str, member_id: str, body: CommentCreate
+) -> NewComment:
+    """The new comment, once ``user`` may add it and a new thread's vertex is on its shape."""
+    if isinstance(body, CommentReply):
+        _discussion(services, user, collection_id, member_id, "reply")
+        return NewComment(body.text, reply_to=body.reply_to)
+    record = _discussion(services, user, collection_id, member_id, "start")
+    _check_vertex(services, record, member_id, body.side, body.vertex)
+    return NewComment(body.text, body.side, body.vertex)
 
 
 def _discussion(services: Services, user: User, collection_id: str, member_id: str, part: Part) -> CollectionRecord:
