@@ -74,11 +74,11 @@ user's sessions, member sessions included), concurrent jobs = COUNT(the user's q
 in the transaction that admits the new thing.
 
 Modules, one per concept: :mod:`.users`, :mod:`.shapes` (uploaders, and the shape-in-use check),
-:mod:`.sessions`, :mod:`.collections`, :mod:`.comments` (review comments), :mod:`.jobs`, :mod:`.usage` (quotas), :mod:`.audit`, :mod:`.webhooks`; lists are
-:class:`~.common.Page` s filtered in SQL for a :class:`~.common.Viewer`. :mod:`.migrate` runs Alembic from code
-(``curvefm db upgrade``), :mod:`.legacy_import` imports a data directory in the old layout (``curvefm db
-import``, and at first start), :mod:`.backup` copies a SQLite database (``curvefm db backup`` / ``restore``),
-:mod:`.blobs` is the blob store's interface (files: :class:`~.blobs.FileBlobs`).
+:mod:`.sessions`, :mod:`.collections`, :mod:`.comments` (review comments), :mod:`.jobs`, :mod:`.usage` (quotas),
+:mod:`.audit`, :mod:`.webhooks`; lists are :class:`~.common.Page` s filtered in SQL for a :class:`~.common.Viewer`.
+:mod:`.migrate` runs Alembic from code (``curvefm db upgrade``), :mod:`.legacy_import` imports a data directory in
+the old layout (``curvefm db import``, and at first start), :mod:`.backup` copies a SQLite database (``curvefm db
+backup`` / ``restore``), :mod:`.blobs` is the blob store's interface (files: :class:`~.blobs.FileBlobs`).
 """
 
 from curvefm.records.common import SYSTEM, Page, Viewer

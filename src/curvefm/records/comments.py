@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import secrets
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
-from sqlalchemy import Connection, Row, Select, delete, func, insert, select, update
+from sqlalchemy import ColumnElement, Connection, Row, Select, delete, func, insert, select, update
 
 from curvefm.errors import LimitExceeded, NotFound, shown
 from curvefm.records import models as m
@@ -106,7 +106,7 @@ class ReviewComments:
                 raise _unknown(member_id, comment_id)
 
 
-def _comments() -> Select:
+def _comments() -> Select[Any]:
     c = m.ReviewComment
     author, resolver = m.User.__table__.alias("author"), m.User.__table__.alias("resolver")
     return (
@@ -129,7 +129,7 @@ def _comments() -> Select:
     )
 
 
-def _first_of_thread(tx: Connection, collection_id: str, member_id: str, comment_id: str) -> Row:
+def _first_of_thread(tx: Connection, collection_id: str, member_id: str, comment_id: str) -> Row[str, str, int]:
     """The first comment of the comment's thread (itself when it starts one): its id, side and vertex."""
     c = m.ReviewComment
     row = tx.execute(select(c.id, c.reply_to).where(*_named(collection_id, member_id, comment_id))).first()
@@ -138,7 +138,7 @@ def _first_of_thread(tx: Connection, collection_id: str, member_id: str, comment
     return tx.execute(select(c.id, c.side, c.vertex).where(c.id == (row.reply_to or row.id))).one()
 
 
-def _named(collection_id: str, member_id: str, comment_id: str) -> tuple:
+def _named(collection_id: str, member_id: str, comment_id: str) -> tuple[ColumnElement[bool], ...]:
     c = m.ReviewComment
     return (c.collection_id == collection_id, c.member_id == member_id, c.id == comment_id)
 
