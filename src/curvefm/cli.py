@@ -677,6 +677,14 @@ def parser() -> argparse.ArgumentParser:
         type=int,
         help="pseudo-landmarks a collection export may ask for (default $CURVEFM_MAX_PSEUDO_LANDMARKS or 10000)",
     )
+    s.add_argument(
+        "--max-review-comments",
+        type=int,
+        help="review comments per collection member (default $CURVEFM_MAX_REVIEW_COMMENTS or 200)",
+    )
+    s.add_argument(
+        "--max-comment-chars", type=int, help="longest review comment (default $CURVEFM_MAX_COMMENT_CHARS or 2000)"
+    )
     add_limit_options(s)
     s.add_argument("--log-level", default="info")
     s.set_defaults(run=cmd_serve)

@@ -114,6 +114,12 @@ class World:
         self.lab.owner.post(f"/collections/{collection_id}/members/m1/submit").raise_for_status()
         return collection_id
 
+    def fresh_comment(self) -> str:
+        """A new review comment of the owner on member m1 of the owner's collection."""
+        body = {"text": "look here", "side": "target", "vertex": 0}
+        comments = f"/collections/{self.collection}/members/m1/comments"
+        return self.lab.owner.post(comments, json=body).raise_for_status().json()["id"]
+
     def fresh_member(self) -> str:
         """A new member of the owner's collection (on a new shape)."""
         members = f"/collections/{self.collection}/members"
@@ -256,6 +262,20 @@ RULES: dict[tuple[str, str], Rule] = {
         other=404,
     ),
     ("get", "/collections/{collection_id}/reviews"): Rule(lambda w: Call(collection(w)), other=404),
+    ("get", "/collections/{collection_id}/members/{member_id}/comments"): Rule(
+        lambda w: Call(collection(w, member_id="m1")), other=404
+    ),
+    ("post", "/collections/{collection_id}/members/{member_id}/comments"): Rule(
+        lambda w: Call(collection(w, member_id="m1"), json={"text": "here", "side": "source", "vertex": 0}),
+        other=404,
+    ),
+    ("patch", "/collections/{collection_id}/members/{member_id}/comments/{comment_id}"): Rule(
+        lambda w: Call(collection(w, member_id="m1", comment_id=w.fresh_comment()), json={"resolved": True}),
+        other=404,
+    ),
+    ("delete", "/collections/{collection_id}/members/{member_id}/comments/{comment_id}"): Rule(
+        lambda w: Call(collection(w, member_id="m1", comment_id=w.fresh_comment())), other=404
+    ),
     ("post", "/collections/{collection_id}/members/{member_id}/annotations"): Rule(
         lambda w: Call({"collection_id": w.fresh_collection(), "member_id": "m1"}, json={"user": TEST_USER}),
         other=404,

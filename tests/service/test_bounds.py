@@ -180,7 +180,7 @@ def test_k_is_limited_for_bases_sessions_and_converters(server, session):
 
 def test_the_openapi_schema_states_the_configured_limits(server):
     """The limits known at start are the published bounds (every plugin variant of a request has them), marked
-    with their setting; ``max_members`` is the default 200 here."""
+    with their setting; ``max_members`` is the default 200 here, ``max_comment_chars`` 2000."""
     schemas = server.client.get("/openapi.json").json()["components"]["schemas"]
     bounds = {
         ("BasisRequest", "k"): ("maximum", "max_k", LIMITS["max_k"]),
@@ -192,6 +192,8 @@ def test_the_openapi_schema_states_the_configured_limits(server):
         ("CurveSpec", "source"): ("maxItems", "max_path_vertices", LIMITS["max_path_vertices"]),
         ("TemplateCurveSpec", "waypoints"): ("maxItems", "max_path_vertices", LIMITS["max_path_vertices"]),
         ("AnswerRequest", "target"): ("maxItems", "max_path_vertices", LIMITS["max_path_vertices"]),
+        ("NewThread", "text"): ("maxLength", "max_comment_chars", 2000),
+        ("CommentReply", "text"): ("maxLength", "max_comment_chars", 2000),
     }
     for (model, field), (keyword, setting, limit) in bounds.items():
         for variant in schemas[model].get("anyOf", [schemas[model]]):

@@ -312,10 +312,21 @@ def test_a_manager_assigns_a_member_by_hand_asks_a_second_annotation_and_sees_ag
     assert [(a["annotator"], a["further"]) for a in annotations] == [("ann", False), ("bo", True)]
     asked = browser.new_context(viewport=VIEWPORT).new_page()  # bo finds it in their work, marked as such
     asked.on("pageerror", lambda error: errors.append(str(error)))
-    open_session(asked, api.url, annotations[1]["session"], token=tokens["bo"])
+    open_session(asked, api.url, made["members"][0]["session"], token=tokens["bo"])
     asked.click("#collections-panel summary")
     work = f'#my-work li[data-collection="{collection_id}"][data-member="m1"][data-further="true"]'
     assert asked.text_content(work) == "next: agreed · ellipsoid (m1) · 0/2 curves · further annotation"
+    asked.click(work)  # opens bo's own session of the further annotation, guided
+    asked.wait_for_function(
+        "(id) => window.curvefm.sessionId === id && window.curvefm.guide && window.curvefm.guide.current === 't1'",
+        arg=annotations[1]["session"],
+    )
+    assert asked.evaluate("window.curvefm.guide") == {
+        "collection": collection_id,
+        "member": "m1",
+        "current": "t1",
+        "annotator": "bo",
+    }
 
     page.click("#show-agreement")
     page.wait_for_selector("#agreement-summary:has-text('no member is annotated twice')")
@@ -336,4 +347,78 @@ def test_a_manager_assigns_a_member_by_hand_asks_a_second_annotation_and_sees_ag
     assert page.text_content("#agreement-summary").startswith(
         f"Agreement: mean map distance {report['map_distance']:.4f}"
     )
+    assert not errors, errors
+
+
+def comments_shown(page, count: int) -> list[dict]:
+    page.wait_for_function("(n) => (window.curvefm.comments || []).length === n", arg=count)
+    return page.evaluate("window.curvefm.comments")
+
+
+def open_member_page(browser, api, session: str, token: str, collection_id: str, errors: list):
+    """A page of the token's user on the member's session, the member opened from the collection's list."""
+    page = browser.new_context(viewport=VIEWPORT).new_page()
+    page.on("pageerror", lambda error: errors.append(str(error)))
+    open_session(page, api.url, session, token=token)
+    page.click("#collections-panel summary")
+    page.select_option("#collection-select", collection_id)
+    page.click('#member-list li[data-member-id="m1"] button[data-action="open"]')
+    page.wait_for_function("() => window.curvefm.ready && window.curvefm.guide && window.curvefm.comments")
+    return page
+
+
+def test_a_reviewer_pins_comments_to_vertices_and_the_annotator_sees_them_there(browser, served):
+    """A reviewer Alt+clicks a vertex of the member and, with the Comment toggle, one of the template: each asks
+    for the text and pins a comment there (the API stores those vertices); the annotator's page shows both markers
+    at those vertices and the list; choosing an entry marks its pin, and the annotator resolves the thread."""
+    api, view = served
+    template, shape = view["collection"]["template"], view["members"][0]["shape"]
+    body = {"name": "commented", "template": template, "curves": TEMPLATE_CURVES, "members": [shape], "k": K}
+    made = api.client.post("/collections", json=body).raise_for_status().json()
+    collection_id, session = made["collection"]["id"], made["members"][0]["session"]
+    base = f"/collections/{collection_id}"
+    tokens = {name: add_user(api.data_dir, name) for name in ("rita", "ann")}
+    api.client.put(f"{base}/roles/rita", json={"role": "reviewer"}).raise_for_status()
+    api.client.put(f"{base}/roles/ann", json={"role": "annotator"}).raise_for_status()
+    api.client.put(f"{base}/members/m1/assignee", json={"user": "ann"}).raise_for_status()
+    errors = []
+
+    reviewer = open_member_page(browser, api, session, tokens["rita"], collection_id, errors)
+    assert comments_shown(reviewer, 0) == [] and reviewer.is_visible("#comments-panel")
+    texts = iter(["t1 should end here", "and start here"])
+    reviewer.on("dialog", lambda dialog: dialog.accept(next(texts)))
+    ((on_member, on_template),) = endpoint_pairs(pickable_vertices(reviewer), 1, seed=5)
+    reviewer.keyboard.down("Alt")
+    reviewer.mouse.click(*on_member["target"])
+    reviewer.keyboard.up("Alt")
+    comments_shown(reviewer, 1)
+    reviewer.check("#comment-mode")
+    reviewer.mouse.click(*on_template["source"])
+    pinned = comments_shown(reviewer, 2)
+    assert [(c["side"], c["vertex"], c["text"], c["author"]) for c in pinned] == [
+        ("target", on_member["id"], "t1 should end here", "rita"),
+        ("source", on_template["id"], "and start here", "rita"),
+    ]
+    stored = api.client.get(f"{base}/members/m1/comments").raise_for_status().json()
+    assert [(c["side"], c["vertex"]) for c in stored] == [("target", on_member["id"]), ("source", on_template["id"])]
+    assert api.client.get(f"/sessions/{session}").json()["curves"] == []  # the clicks entered no curve
+
+    annotator = open_member_page(browser, api, session, tokens["ann"], collection_id, errors)
+    assert [c["id"] for c in comments_shown(annotator, 2)] == [c["id"] for c in stored]
+    annotator.wait_for_function("() => ['source', 'target'].every((s) => window.curvefm.commentMarkers(s).length)")
+    for side, comment in (("target", stored[0]), ("source", stored[1])):
+        (marker,) = annotator.evaluate("(side) => window.curvefm.commentMarkers(side)", side)
+        assert (marker["id"], marker["vertex"], marker["selected"]) == (comment["id"], comment["vertex"], False)
+    entry = f'#comment-list li[data-comment-id="{stored[0]["id"]}"]'
+    assert "t1 should end here" in annotator.text_content(entry)
+    assert annotator.is_hidden("#comment-mode-label")  # annotators reply, reviewers start threads
+    annotator.click(f"{entry} .comment-text")
+    annotator.wait_for_function("(id) => window.curvefm.selectedComment === id", arg=stored[0]["id"])
+    assert annotator.evaluate("window.curvefm.commentMarkers('target')[0].selected")
+    next_frames(annotator)
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    annotator.screenshot(path=str(ARTIFACTS / "13-review-comments.png"))
+    annotator.click(f'{entry} button[data-action="resolve"]')
+    annotator.wait_for_selector(f"{entry}.resolved")
+    assert api.client.get(f"{base}/members/m1/comments").json()[0]["resolved_by"] == "ann"
     assert not errors, errors

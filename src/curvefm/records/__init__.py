@@ -53,6 +53,11 @@ The record model (:mod:`.models`; ``->`` a foreign key, with what happens when t
     member_annotations (collection_id -> collections CASCADE, member_id, user_id -> users CASCADE) PK,
                       session_id -> sessions (CASCADE; unique), created_at: further annotations of a member by
                       other annotators (double annotation); the repository deletes their sessions with the member
+    review_comments   id PK, collection_id -> collections CASCADE, member_id, side (source: the template;
+                      target: the member's shape), vertex (a file id), text, author_id -> users (SET NULL),
+                      created_at, reply_to -> review_comments CASCADE (a thread's first comment), resolved_by ->
+                      users (SET NULL), resolved_at: review comments pinned to a vertex (keyed as
+                      member_assignments)
     audit             id PK (append order), time, actor (a name or "cli"), user_id -> users, action, target,
                       detail (JSON)
     legacy_imports    id PK, source, imported_at, counts (JSON): each import of the old JSON-file layout
@@ -69,11 +74,11 @@ user's sessions, member sessions included), concurrent jobs = COUNT(the user's q
 in the transaction that admits the new thing.
 
 Modules, one per concept: :mod:`.users`, :mod:`.shapes` (uploaders, and the shape-in-use check),
-:mod:`.sessions`, :mod:`.collections`, :mod:`.jobs`, :mod:`.usage` (quotas), :mod:`.audit`, :mod:`.webhooks`; lists are
-:class:`~.common.Page` s filtered in SQL for a :class:`~.common.Viewer`. :mod:`.migrate` runs Alembic from code
-(``curvefm db upgrade``), :mod:`.legacy_import` imports a data directory in the old layout (``curvefm db
-import``, and at first start), :mod:`.backup` copies a SQLite database (``curvefm db backup`` / ``restore``),
-:mod:`.blobs` is the blob store's interface (files: :class:`~.blobs.FileBlobs`).
+:mod:`.sessions`, :mod:`.collections`, :mod:`.comments` (review comments), :mod:`.jobs`, :mod:`.usage` (quotas),
+:mod:`.audit`, :mod:`.webhooks`; lists are :class:`~.common.Page` s filtered in SQL for a :class:`~.common.Viewer`.
+:mod:`.migrate` runs Alembic from code (``curvefm db upgrade``), :mod:`.legacy_import` imports a data directory in
+the old layout (``curvefm db import``, and at first start), :mod:`.backup` copies a SQLite database (``curvefm db
+backup`` / ``restore``), :mod:`.blobs` is the blob store's interface (files: :class:`~.blobs.FileBlobs`).
 """
 
 from curvefm.records.common import SYSTEM, Page, Viewer

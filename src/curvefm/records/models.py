@@ -389,3 +389,23 @@ class MemberAnnotation(Base):
     user_id: Mapped[int] = mapped_column(ForeignKey("users.id", ondelete="CASCADE"), primary_key=True, index=True)
     session_id: Mapped[str] = mapped_column(ForeignKey("sessions.id", ondelete="CASCADE"), unique=True)
     created_at: Mapped[float] = mapped_column(Double)
+
+
+class ReviewComment(Base):
+    """A comment on a member pinned to a vertex (a file id) of either shape of its session: ``source`` (the
+    template) or ``target`` (the member's shape). A reply names its thread's first comment (``reply_to``) and sits
+    where it does; a thread is resolved on its first comment. Keyed by the member's id as :class:`Assignment` is."""
+
+    __tablename__ = "review_comments"
+    id: Mapped[str] = mapped_column(ID, primary_key=True)
+    collection_id: Mapped[str] = mapped_column(ForeignKey("collections.id", ondelete="CASCADE"))
+    member_id: Mapped[str] = mapped_column(String(16))
+    side: Mapped[str] = mapped_column(String(8))
+    vertex: Mapped[int] = mapped_column(Integer)
+    text: Mapped[str] = mapped_column(Text)
+    author_id: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"), index=True)
+    created_at: Mapped[float] = mapped_column(Double)
+    reply_to: Mapped[str | None] = mapped_column(ForeignKey("review_comments.id", ondelete="CASCADE"), index=True)
+    resolved_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
+    resolved_at: Mapped[float | None] = mapped_column(Double)
+    __table_args__ = (Index("ix_review_comments_member", "collection_id", "member_id", "created_at"),)

@@ -18,6 +18,7 @@ from curvefm.service import (
     routes_audit,
     routes_auth,
     routes_collections,
+    routes_comments,
     routes_events,
     routes_jobs,
     routes_reviews,
@@ -155,6 +156,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         routes_collections,
         routes_webhooks,
         routes_reviews,
+        routes_comments,
         routes_jobs,
         routes_audit,
     )

@@ -15,6 +15,7 @@ from curvefm.collection import CollectionEditor, JobView
 from curvefm.errors import NotFound
 from curvefm.records import SYSTEM, Database, Viewer
 from curvefm.records.collections import Collections
+from curvefm.records.comments import ReviewComments
 from curvefm.records.engine import shared_database
 from curvefm.records.legacy_import import ImportReport, import_if_needed
 from curvefm.records.sessions import Sessions
@@ -60,6 +61,8 @@ class Services:
     webhooks: Webhooks
     """The collections' webhooks: ``services.webhooks.notify(collection_id, WebhookEvent.X, data)`` announces an
     event (posted by this process's delivery loop, or another API process's)."""
+    comments: ReviewComments
+    """The collection members' review comments, pinned to vertices."""
     sso: SingleSignOn | None = None  # single sign-on, when configured
     stop_events: list[threading.Event] = field(default_factory=list)
 
@@ -128,6 +131,7 @@ def start_services(settings: Settings) -> Services:
         Shapes(database),
         UploadSlots(settings),
         Webhooks(database, settings.webhook_log_size),
+        ReviewComments(database),
         SingleSignOn(settings) if settings.sso else None,
     )
     expiry = start_expiry(queue, store.root, settings.job_ttl_s, settings.expiry_interval_s)

@@ -249,6 +249,49 @@ class ReviewRequest(BaseModel):
     comment: str = Field("", max_length=2000, description="what to change (shown to the annotator)")
 
 
+COMMENT_TEXT = Field(pattern=r"^[^\x00]*[^\x00\s][^\x00]*$", description="what the comment says (not blank)")
+
+
+class NewThread(BaseModel):
+    """A comment that starts a thread, pinned to a vertex of one shape of the member's session."""
+
+    model_config = ConfigDict(extra="forbid")
+    text: str = COMMENT_TEXT
+    side: Literal["source", "target"] = Field(
+        description="the shape it points at: source (the template) or target (the member's shape)"
+    )
+    vertex: int = Field(ge=0, le=2**31 - 1, description="the vertex (a file id, 0-based) of that shape it points at")
+
+
+class CommentReply(BaseModel):
+    """A comment that answers another: it joins that comment's thread, at its vertex."""
+
+    model_config = ConfigDict(extra="forbid")
+    text: str = COMMENT_TEXT
+    reply_to: str = Field(max_length=64, description="a comment of the thread this one answers")
+
+
+CommentCreate = NewThread | CommentReply
+
+
+class CommentResolve(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    resolved: bool = Field(description="true: the thread is resolved; false: open it again")
+
+
+class ReviewCommentView(BaseModel):
+    id: str
+    member: str
+    side: Literal["source", "target"] = Field(description="source: the template; target: the member's shape")
+    vertex: int = Field(description="the vertex it points at (a file id)")
+    text: str
+    author: str | None = Field(description="who wrote it (null: a removed user)")
+    created_at: float = Field(description="when, UNIX seconds")
+    reply_to: str | None = Field(None, description="the first comment of the thread it answers (null: it starts one)")
+    resolved_by: str | None = Field(None, description="who resolved the thread (on its first comment; null: open)")
+    resolved_at: float | None = None
+
+
 class AnnotationRequest(BaseModel):
     model_config = ConfigDict(extra="forbid")
     user: str = Field(description="the annotator who annotates the member once more, independently")

@@ -73,11 +73,13 @@ LIMITED_FIELDS: dict[str, dict[str, tuple[str, ...]]] = {
     "CurveSpec": {"source": VERTEX_LISTS, "target": VERTEX_LISTS},
     "TemplateCurveSpec": {"waypoints": VERTEX_LISTS},
     "AnswerRequest": {"target": VERTEX_LISTS},
+    "NewThread": {"text": ("max_comment_chars",)},
+    "CommentReply": {"text": ("max_comment_chars",)},
 }
 """Request schemas (components) -> their fields bounded by configured limits (settings)."""
 LIMIT_KEY = "x-curvefm-limit"
 """Marks a ``maximum`` or ``maxItems`` that is a configured limit: its setting's name."""
-BOUNDING_KEYWORDS = {"integer": "maximum", "array": "maxItems"}
+BOUNDING_KEYWORDS = {"integer": "maximum", "array": "maxItems", "string": "maxLength"}
 BODY_STATUSES = (408, 413)
 """What the body's read (:class:`curvefm.service.app.BodySizeLimit`) answers on every operation with a body."""
 
@@ -282,10 +284,19 @@ def _configured_limit(error: ValidationError) -> BoundExceeded | None:
         pending += current.context or []
         setting = current.schema.get(LIMIT_KEY) if isinstance(current.schema, Mapping) else None
         if setting and current.validator in BOUNDING_KEYWORDS.values():
-            path, value = list(current.absolute_path), current.instance
-            what = f"{len(value)} items" if isinstance(value, list) else f"{path[-1]} = {value}"
+            path = list(current.absolute_path)
+            what = _what(path, current.instance)
             return BoundExceeded(path, LimitExceeded(setting, cast(int, current.validator_value), what))
     return None
+
+
+def _what(path: list, value: object) -> str:
+    """What passed a bound: a list's length, a text's (not the text itself), a number."""
+    if isinstance(value, list):
+        return f"{len(value)} items"
+    if isinstance(value, str):
+        return f"{path[-1]} of {len(value)} characters"
+    return f"{path[-1]} = {value}"
 
 
 def _explain(error: ValidationError) -> tuple[list, str]:

@@ -37,6 +37,8 @@ LIMITS = (
     *SESSION_LIMITS,
     "max_webhooks",
     "max_pseudo_landmarks",
+    "max_review_comments",
+    "max_comment_chars",
 )
 """The limits: each a positive integer, read from ``CURVEFM_<NAME>`` (``CURVEFM_MAX_K``) and named in its error."""
 LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
@@ -131,6 +133,8 @@ class Settings(QueueSettings):
         description="The most pseudo-landmarks a collection's morphometrics export may ask for (each is mapped to "
         "every member, so the work grows with both).",
     )
+    max_review_comments: Positive = Field(200, description="The most review comments one collection member may hold.")
+    max_comment_chars: Positive = Field(2000, description="The longest review comment, in characters.")
     webhook_allow_private: bool = Field(
         False,
         description="Let webhooks post to loopback, private, link-local and other internal addresses. Off, a "

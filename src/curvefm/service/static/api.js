@@ -190,8 +190,8 @@ export const api = {
   addMembers: (id, shapes) => request("POST", `/collections/${enc(id)}/members`, { json: { shapes } }),
   /** Answer template curve ``answer.template_curve`` on a member with ``answer.target`` (member file ids); answering
    * it again replaces the earlier answer. Resolves to a curve edit, as addCurve. */
-  answerCurve: (id, member, revision, answer) =>
-    request("POST", `/collections/${enc(id)}/members/${enc(member)}/curves`, {
+  answerCurve: (id, member, revision, answer, annotator = null) =>
+    request("POST", `/collections/${enc(id)}/members/${enc(member)}/curves${annotator ? `?annotator=${enc(annotator)}` : ""}`, {
       json: answer,
       headers: basedOn(revision),
     }),
@@ -201,6 +201,15 @@ export const api = {
   /** decision: "accept" or "request_changes" (with a comment for the annotator); resolves to the member's review. */
   reviewMember: (id, member, decision, comment = "") =>
     request("POST", `/collections/${enc(id)}/members/${enc(member)}/review`, { json: { decision, comment } }),
+  /** A member's review comments, oldest first: { id, side, vertex (a file id), text, author, reply_to, resolved_by }. */
+  comments: (id, member) => request("GET", `/collections/${enc(id)}/members/${enc(member)}/comments`),
+  /** body: { text, side, vertex } (a new thread) or { text, reply_to } (a reply); resolves to the comment. */
+  addComment: (id, member, body) =>
+    request("POST", `/collections/${enc(id)}/members/${enc(member)}/comments`, { json: body }),
+  resolveComment: (id, member, comment, resolved) =>
+    request("PATCH", `/collections/${enc(id)}/members/${enc(member)}/comments/${enc(comment)}`, { json: { resolved } }),
+  deleteComment: (id, member, comment) =>
+    request("DELETE", `/collections/${enc(id)}/members/${enc(member)}/comments/${enc(comment)}`, { as: "none" }),
   /** A run of the members that have curves (the others keep their previous run's jobs). */
   startRun: (id, converter, params) =>
     request("POST", `/collections/${enc(id)}/runs`, { json: { converter, params, only_ready: true } }),

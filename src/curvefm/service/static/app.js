@@ -11,7 +11,6 @@ import {
   chooseCollection,
   createCollection,
   grantRole,
-  openWork,
   runReady,
   showAgreementReport,
 } from "./controllers/collections.js";
@@ -35,7 +34,8 @@ import {
   showCurveTubes,
   useTextureImage,
 } from "./controllers/display.js";
-import { clickMemberList, clickTemplateList, openNextMember, skip, step } from "./controllers/guide.js";
+import { clickCommentList, toggleCommentMode } from "./controllers/comments.js";
+import { clickMemberList, clickTemplateList, openNextMember, openWork, skip, step } from "./controllers/guide.js";
 import "./controllers/live.js"; // follows the open session's changes made elsewhere (the store's "followed")
 import { logOut, makeToken, watchLogin } from "./controllers/login.js";
 import { openPair, upload } from "./controllers/pair.js";
@@ -103,6 +103,8 @@ function bindControls() {
   on("guide-previous", "click", () => step(-1));
   on("guide-next", "click", () => step(1));
   on("guide-next-member", "click", openNextMember);
+  on("comment-list", "click", clickCommentList);
+  on("comment-mode", "change", (event) => toggleCommentMode(event.target.checked));
   on("run-converter-select", "change", () => showParameters("converter", "run-converter"));
   on("run-all", "click", runReady);
   // Curves
@@ -166,6 +168,20 @@ function installTestHooks() {
     highlighted(side) {
       const vertex = viewports[side].highlightedVertex;
       return vertex >= 0 ? state.shapes[side].mesh.fileIds[vertex] : null;
+    },
+    /** The open member's review comments: [{ id, side, vertex (file id), text, author, reply_to, resolved }], or
+     * null when the open session is no collection member's. */
+    get comments() {
+      const items = state.comments?.items;
+      return items ? items.map((c) => ({ ...c, resolved: Boolean(c.resolved_by) })) : null;
+    },
+    get selectedComment() {
+      return state.selectedComment;
+    },
+    /** The comment markers one side draws: [{ id, vertex (file id of the drawn vertex), selected }]. */
+    commentMarkers(side) {
+      const { fileIds } = state.shapes[side].mesh;
+      return viewports[side].commentMarkers.map((m) => ({ id: m.id, vertex: fileIds[m.vertex], selected: m.selected }));
     },
     screenToVertex(side, x, y) {
       const vertex = viewports[side].pick(x, y);

@@ -40,7 +40,14 @@ export const state = {
   collection: null, // the chosen collection as GET /collections/{id} shows it: { collection: record, members }
   // Guided clicking: the open session is a member's of state.collection, and target clicks answer the current
   // template curve (null: none left; clicks enter extra curves as in any session).
-  guide: null, // { collection: id, member: member id, current: template curve id or null }
+  // { collection: id, member: member id, current: template curve id or null, annotator: the user's name in a further
+  // annotation of the member (their own session; null in the member's session) }
+  guide: null,
+  // The review comments of the open session's collection member (reviewedMember): { collection, member, items:
+  // GET .../comments }, or null; the chosen one (its marker is ringed); whether a click on a shape pins a comment.
+  comments: null,
+  selectedComment: null,
+  commentMode: false,
   editing: 0, // edits sent and not yet shown: the service's announced changes wait for them
   viewers: [], // the names of the users who have the open session open (GET /sessions/{id}/events), the page's too
   followed: null, // the session whose changes made elsewhere the page follows (controllers/live.js), or null
@@ -209,6 +216,37 @@ export function setCollection(view) {
   if (state.guide && state.guide.collection !== view?.collection.id) state.guide = null;
 }
 
+/** The collection member whose session is open: the guided one, else the open collection's member of that session;
+ * { collection, member } or null. */
+export function reviewedMember() {
+  if (state.guide) return { collection: state.guide.collection, member: state.guide.member };
+  const member = state.collection?.members.find((m) => m.session === state.session?.id);
+  return member ? { collection: state.collection.collection.id, member: member.id } : null;
+}
+
+/** The user may start comment threads on the open collection's members (its `may`: review). */
+export function mayStartComment() {
+  return Boolean(state.collection?.may.includes("review"));
+}
+
+/** The user may reply to comments and resolve threads: who may start them, or answer the open member. */
+export function mayReplyComment() {
+  return mayStartComment() || mayEdit();
+}
+
+export function setComments(view) {
+  state.comments = view;
+  if (!view?.items.some((c) => c.id === state.selectedComment)) state.selectedComment = null;
+}
+
+export function selectComment(commentId) {
+  state.selectedComment = commentId;
+}
+
+export function setCommentMode(on) {
+  state.commentMode = on;
+}
+
 export function setCurrentTemplateCurve(curveId) {
   state.guide.current = curveId;
 }
@@ -328,7 +366,12 @@ export function mayManage() {
 /** The user may change the open session's curves: as its owner or sharing allow, or, for a member session of the
  * open collection, as their role there does. */
 export function mayEdit() {
-  return mayManage() || state.session?.sharing === "edit" || mayAnswerOpenMember();
+  return mayManage() || state.session?.sharing === "edit" || mayAnswerOpenMember() || answersFurther();
+}
+
+/** The open session is the user's own further annotation of the guided member. */
+function answersFurther() {
+  return Boolean(state.guide?.annotator) && state.guide.annotator === state.user?.name;
 }
 
 function mayAnswerOpenMember() {

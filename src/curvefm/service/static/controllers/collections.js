@@ -17,6 +17,7 @@ import { showCurves, showPending } from "../views/curves.js";
 import { $ } from "../views/dom.js";
 import { pluginChoice } from "../views/forms.js";
 import { ProgressRow, report, toast } from "../views/messages.js";
+import { refreshComments } from "./comments.js";
 import { leaveDeletedSession } from "./session.js";
 
 const RUN_POLL_MS = 500;
@@ -98,11 +99,6 @@ export async function showAgreementReport() {
   }
 }
 
-/** A "My work" entry: open its collection. */
-export async function openWork(entry) {
-  await chooseCollection(entry.dataset.collection);
-}
-
 /** The collection select's choice ("" closes the panel's collection). */
 export async function chooseCollection(id) {
   if (!id) {
@@ -128,6 +124,7 @@ export async function openCollection(id) {
   showAgreement(null);
   showCollection();
   showRoles(await api.roles(id));
+  refreshComments();
   const newest = state.collection.collection.runs.at(-1);
   if (newest) followRun(id, await api.run(id, newest.id));
   watchBases(id);

@@ -18,14 +18,16 @@ import { showCurves, showPending, showTracing } from "../views/curves.js";
 import { tracerChoice } from "../views/forms.js";
 import { readOnlyHint } from "../views/hints.js";
 import { toast } from "../views/messages.js";
+import { commentClick } from "./comments.js";
 import { chooseRegion } from "./display.js";
 import { edits, runEdit } from "./edits.js";
 import { answerTemplateCurve } from "./guide.js";
 import { clickSuggestion, showSuggestion } from "./suggestion.js";
 
-/** A click on a vertex of one shape (internal id): a point of the curve being entered, or the region's centre. */
+/** A click on a vertex of one shape (internal id): a point of the curve being entered, the region's centre, or (Alt, or
+ * the Comment toggle) where a review comment is pinned. */
 export function pickVertex(side, vertex, event) {
-  if (!state.ready) return;
+  if (!state.ready || commentClick(side, vertex, event)) return;
   if (state.pickingRegion) {
     if (side === "source") chooseRegion(vertex, event.timeStamp);
     return;

@@ -45,7 +45,8 @@ export const edits = {
   /** answer: { template_curve, target, tracer, tracer_params } on the guided member; replaces an earlier answer. */
   async answer(answer) {
     const previous = answerOf(answer.template_curve);
-    const edit = await api.answerCurve(state.guide.collection, state.guide.member, state.session.revision, answer);
+    const { collection, member, annotator } = state.guide;
+    const edit = await api.answerCurve(collection, member, state.session.revision, answer, annotator);
     if (previous) curveReplaced(previous.id, edit.curve);
     else curveAdded(edit.curve);
     return edit;

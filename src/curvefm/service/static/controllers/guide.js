@@ -6,7 +6,7 @@ import { answerOf, clearPending, recordEdit, setCurrentTemplateCurve, state, tem
 import { nextMember, openCollectionsPanel, showCollection } from "../views/collections.js";
 import { showCurves, showPending, showTracing } from "../views/curves.js";
 import { tracerChoice } from "../views/forms.js";
-import { removeMember, reviewMember, submitMember } from "./collections.js";
+import { chooseCollection, removeMember, reviewMember, submitMember } from "./collections.js";
 import { openSession } from "./session.js";
 import { edits, runEdit } from "./edits.js";
 
@@ -32,17 +32,26 @@ export function openNextMember() {
   if (next) return openMember(next);
 }
 
-/** Open a member's session with the first unanswered template curve current. */
-export async function openMember(memberId) {
+/** Open a member's session (``further``: { session, annotator } of a further annotation of it instead) with the
+ * first unanswered template curve current. */
+export async function openMember(memberId, further = null) {
   const { collection, members } = state.collection;
-  const member = members.find((m) => m.id === memberId);
-  const guide = { collection: collection.id, member: memberId, current: null };
-  await openSession(member.session, { guide });
+  const session = further?.session ?? members.find((m) => m.id === memberId).session;
+  const guide = { collection: collection.id, member: memberId, current: null, annotator: further?.annotator ?? null };
+  await openSession(session, { guide });
   if (state.guide !== guide) return; // the session did not open, or another one was opened meanwhile
   setCurrentTemplateCurve(templateCurves().find((curve) => !curve.answer)?.id ?? null);
   openCollectionsPanel();
   showCollection();
   redraw();
+}
+
+/** A "My work" entry: open its collection, and a further annotation's own session, guided. */
+export async function openWork(entry) {
+  const { collection, member, session, further } = entry.dataset;
+  await chooseCollection(collection);
+  if (further !== "true" || state.collection?.collection.id !== collection) return;
+  await openMember(member, { session, annotator: state.user.name });
 }
 
 /** The target side of the current template curve is closed: answer it, then move on to the next unanswered one. */

@@ -30,6 +30,7 @@ import {
   showStatus,
 } from "../views/page.js";
 import { orientViews, paint, showShapes, showSource, SIDES, viewports } from "../views/viewports.js";
+import { refreshComments } from "./comments.js";
 import { carriedRows } from "./feedback.js";
 import { refreshQuality, refreshSolve } from "./quality.js";
 import { refreshSuggestion } from "./suggestion.js";
@@ -79,8 +80,8 @@ async function showMoreSessions() {
 export async function openSession(id, { guide = null } = {}) {
   const url = new URL(window.location.href);
   url.searchParams.set("session", id);
-  for (const key of ["collection", "member"]) {
-    if (guide) url.searchParams.set(key, guide[key]);
+  for (const key of ["collection", "member", "annotator"]) {
+    if (guide?.[key]) url.searchParams.set(key, guide[key]);
     else url.searchParams.delete(key);
   }
   window.history.replaceState(null, "", url);
@@ -109,6 +110,7 @@ export async function openSession(id, { guide = null } = {}) {
     showSharing();
     showStatus();
     showCollection();
+    refreshComments();
     setFollowed(id);
     refreshSolve();
     refreshQuality();

@@ -22,7 +22,7 @@ export async function start() {
     showPlugins("converter", "run-converter");
     const [{ sessions }] = await Promise.all([refreshLists(), refreshCollections()]);
     const query = new URLSearchParams(window.location.search);
-    if (await openGuidedMember(query.get("collection"), query.get("member"))) return;
+    if (await openGuidedMember(query)) return;
     const id = query.get("session") ?? sessions[0]?.id;
     if (id) await openSession(id);
     else await waitForFirstSession();
@@ -32,8 +32,10 @@ export async function start() {
   }
 }
 
-/** The member named in the page's URL, guided (the page was reloaded); resolves to whether it opened. */
-async function openGuidedMember(collection, member) {
+/** The member named in the page's URL, guided (the page was reloaded; with an annotator: their further annotation,
+ * the session named); resolves to whether it opened. */
+async function openGuidedMember(query) {
+  const [collection, member, annotator] = ["collection", "member", "annotator"].map((key) => query.get(key));
   if (!collection) return false;
   try {
     await openCollection(collection);
@@ -42,7 +44,7 @@ async function openGuidedMember(collection, member) {
     return false;
   }
   if (!member || !state.collection.members.some((m) => m.id === member)) return false;
-  await openMember(member);
+  await openMember(member, annotator ? { session: query.get("session"), annotator } : null);
   return true;
 }
 

@@ -126,6 +126,7 @@ export function showMyWork(items) {
       const entry = document.createElement("li");
       entry.dataset.collection = item.collection;
       entry.dataset.member = item.member;
+      entry.dataset.session = item.session;
       entry.classList.toggle("done", item.done);
       const next = at === 0 && !item.done ? "next: " : "";
       const label = `${next}${item.collection_name || item.collection} · ${item.shape_name} (${item.member})`;

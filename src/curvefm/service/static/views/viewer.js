@@ -53,6 +53,9 @@ export class Viewport {
     this.surface.add(this.curveGroup);
     this.markers = new THREE.Group();
     this.surface.add(this.markers);
+    this.commentGroup = new THREE.Group(); // review comments' markers (setCommentMarkers)
+    this.surface.add(this.commentGroup);
+    this.commentMarkers = [];
     this.suggested = new THREE.Group(); // the suggested curve's ends: faint balls (setSuggestion)
     this.surface.add(this.suggested);
     this.suggestedRows = [];
@@ -71,6 +74,7 @@ export class Viewport {
   setMesh(mesh) {
     this.setCurves([]);
     this.setMarkers([]);
+    this.setCommentMarkers([]);
     this.setSuggestion([]);
     if (this.mesh) {
       this.surface.remove(this.mesh);
@@ -240,6 +244,25 @@ export class Viewport {
       const marker = new THREE.Mesh(this.markerGeometry, new THREE.MeshLambertMaterial({ color }));
       marker.position.fromBufferAttribute(positions, vertex);
       this.markers.add(marker);
+    }
+    this.frames.request(this);
+  }
+
+  /** markers: [{ id, vertex (internal id), selected, resolved }]: review comments as pins (magenta, resolved grey,
+   * the selected one yellow and larger). */
+  setCommentMarkers(markers) {
+    for (const pin of [...this.commentGroup.children]) {
+      this.commentGroup.remove(pin);
+      pin.material.dispose();
+    }
+    this.commentMarkers = markers.filter((marker) => marker.vertex >= 0);
+    const positions = this.mesh?.geometry.attributes.position;
+    for (const { vertex, selected, resolved } of this.commentMarkers) {
+      const color = selected ? 0xffd400 : resolved ? 0x9aa0aa : 0xe6007e;
+      const pin = new THREE.Mesh(this.markerGeometry, new THREE.MeshLambertMaterial({ color, emissive: color, emissiveIntensity: 0.3 }));
+      pin.scale.setScalar(selected ? 1.8 : 1.2);
+      pin.position.fromBufferAttribute(positions, vertex);
+      this.commentGroup.add(pin);
     }
     this.frames.request(this);
   }
