@@ -336,4 +336,23 @@ def test_a_manager_assigns_a_member_by_hand_asks_a_second_annotation_and_sees_ag
     assert page.text_content("#agreement-summary").startswith(
         f"Agreement: mean map distance {report['map_distance']:.4f}"
     )
+    assert page.is_hidden("#check-summary")
+
+    # m1 becomes a check member: the owner sees each annotator's error, bo (an annotator) sees nothing of it
+    rows, known = (api.client.get(f"/shapes/{s}").json()["n_file_vertices"] for s in (template, shape))
+    truth = "".join(f"{v % known}\n" for v in range(rows)).encode()
+    api.client.put(f"{base}/members/m1/truth", files={"file": ("truth.txt", truth)}).raise_for_status()
+    page.click("#show-agreement")
+    check_row = '#check-list li[data-member="m1"]'
+    page.wait_for_selector(check_row)
+    checks = api.client.get(f"{base}/agreement").raise_for_status().json()["checks"]
+    shown = page.text_content(check_row)
+    assert [a["annotator"] for a in checks["members"][0]["annotations"]] == ["ann", "bo"]
+    for scored in checks["members"][0]["annotations"]:
+        assert f"{scored['annotator']} {scored['error']:.4f}" in shown, shown
+    assert page.text_content("#check-summary").startswith(f"Check members: mean error {checks['error']:.4f}")
+    asked.select_option("#collection-select", collection_id)
+    asked.click("#show-agreement")
+    asked.wait_for_selector('#agreement-list li[data-member="m1"]')
+    assert asked.is_hidden("#check-summary") and asked.locator("#check-list li").count() == 0
     assert not errors, errors

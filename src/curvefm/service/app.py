@@ -17,6 +17,7 @@ from curvefm.errors import LimitExceeded
 from curvefm.service import (
     routes_audit,
     routes_auth,
+    routes_checks,
     routes_collections,
     routes_events,
     routes_jobs,
@@ -155,6 +156,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         routes_collections,
         routes_webhooks,
         routes_reviews,
+        routes_checks,
         routes_jobs,
         routes_audit,
     )

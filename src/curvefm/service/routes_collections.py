@@ -576,12 +576,16 @@ def get_archive(
     and ``map_template_to_member``, and ``summary.json`` (members, shapes, sessions, quality figures). ``zip``:
     the same as ``<member>/<name>.txt`` files. When the collection has double annotations, ``summary.json``
     holds the agreement report too (``agreement``, as ``GET .../agreement``; 409 while a basis it needs is not
-    ready). 409 names the members still pending or failed."""
-    record = collection_for(services, user, collection_id, "read")
+    ready), and so it does with the check members' accuracy (``agreement.checks``) when the collection has check
+    members and the caller manages it (no one else learns which members are checks). 409 names the members still
+    pending or failed."""
+    manages = "manage" in check_collection(services, user, collection_id, "read")
+    record = services.collections.record(collection_id)
     run, maps = _maps(services, record, run_id)
     out = io.BytesIO()
     doubled = any(a.further for a in services.collections.records.annotations(collection_id))
-    agreement = agreement_report(services, record).model_dump() if doubled else None
+    checks = manages and bool(services.collections.records.check_members(collection_id))
+    agreement = agreement_report(services, record, checks).model_dump() if doubled or checks else None
     (write_npz if kind == "npz" else write_zip)(out, maps, archive_summary(record, run, maps, agreement))
     filename = f"collection_{collection_id}_{run_id}.{kind}"
     headers = {"Content-Disposition": f'attachment; filename="{filename}"'}
