@@ -212,12 +212,10 @@ def remove_member(
     """Remove a member: its session, its curves and the result files of its refinement jobs go with it (running
     ones are canceled first), and it leaves the collection's runs. Whoever may add members (an owner, a manager,
     an admin, or every user when the collection is shared editable)."""
-    record = collection_for(services, user, collection_id, "edit")
-    shape = record.member(member_id).shape
-    for job_id in services.collections.remove_member(collection_id, member_id):
+    collection_for(services, user, collection_id, "edit")
+    for job_id in services.collections.remove_member(collection_id, member_id):  # (announces member.removed)
         discard_job(services, job_id)
     services.audit.record(user.name, "collection.remove_member", collection_id, {"member": member_id})
-    services.webhooks.notify(collection_id, WebhookEvent.MEMBER_REMOVED, {"member": member_id, "shape": shape})
     return Response(status_code=204)
 
 
