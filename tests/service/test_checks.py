@@ -139,7 +139,7 @@ def test_bad_truth_files_are_refused_by_name(processes, tmp_path, shared_data):
     expect(put("flat.npy", npy_file(np.zeros((2, VERTICES // 2), dtype=int))), 400, "invalid", "2-D")
     expect(put("floats.npy", npy_file(identity.astype(float))), 400, "invalid", "float64")
     expect(put("broken.npy", npy_file(identity)[:-5]), 400, "invalid", "broken.npy")
-    expect(put("none.txt", text_file(np.full(VERTICES, -1))), 400, "invalid", "every row is -1")
+    expect(put("none.txt", text_file(np.full(VERTICES, -1))), 400, "invalid", "no partner")
     expect(put("one.vts", text_file(identity)), 400, "invalid", ".vts", "0")  # 1-based: id 0 is not
     expect(owner.put(f"{base}/members/m9/truth", files={"file": ("t.txt", text_file(identity))}), 404, "not_found")
     expect(owner.get(truth), 404, "not_found", "no ground truth")

@@ -70,7 +70,7 @@ def checked_truth(ids: np.ndarray, template: Mesh, member: Mesh) -> np.ndarray:
             f"row {dropped[0]} of the ground truth names member vertex {ids[dropped[0]]}, which belongs to no face"
         )
     if not len(truth_pairs(ids, template, member)):
-        raise InvalidInput("the ground truth knows no template vertex's partner (every row is -1)")
+        raise InvalidInput("the ground truth gives no partner to any template vertex on the surface (all rows -1)")
     return ids
 
 
@@ -104,7 +104,7 @@ def accuracy(
     ``template_ends``: the template curves' ends (internal ids), by template curve."""
     given = [t for t in annotation.ends if t in template_ends]
     curves = [(np.array(template_ends[t]), np.array(annotation.ends[t])) for t in given]
-    scored = truth_to_score(truth, curves) if curves else truth
+    scored = truth_to_score(truth, curves)
     partner = np.full(max(int(rows.max(initial=-1)), int(scored.ids_X.max(initial=-1))) + 1, -1, dtype=np.int64)
     partner[scored.ids_X] = scored.ids_Y
     at = np.flatnonzero(partner[rows] >= 0)
