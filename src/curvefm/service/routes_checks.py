@@ -19,7 +19,7 @@ from curvefm.errors import NotFound
 from curvefm.records.collections import Truth
 from curvefm.service import routes_reviews
 from curvefm.service.auth import AUTHENTICATED, CurrentUser
-from curvefm.service.deps import ServicesDep
+from curvefm.service.deps import Services, ServicesDep
 from curvefm.service.errors import error_responses
 from curvefm.service.models import TruthView
 from curvefm.service.openapi import SchemaRoute
@@ -95,7 +95,7 @@ def delete_truth(collection_id: str, member_id: str, services: ServicesDep, user
     return Response(status_code=204)
 
 
-def _stored_truth(services, collection_id: str, member_id: str) -> Truth:
+def _stored_truth(services: Services, collection_id: str, member_id: str) -> Truth:
     services.collections.record(collection_id).member(member_id)
     truth = services.collections.records.truth(collection_id, member_id)
     if truth is None:
