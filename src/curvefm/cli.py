@@ -461,6 +461,15 @@ def cmd_users_remove(args) -> int:
     return 0
 
 
+def cmd_users_admin(args) -> int:
+    admin = not args.revoke
+    was = _users(args).set_admin(args.name, admin)
+    _audit(args, "user.admin", args.name, {"admin": admin, "was": was})
+    now = "is an admin" if admin else "is no admin"
+    print(f"{args.name} {now} now{' (unchanged)' if was == admin else ''}; it takes effect at their next request")
+    return 0
+
+
 def cmd_users_token(args) -> int:
     if not args.rotate:
         raise InvalidInput(
@@ -719,6 +728,12 @@ def parser() -> argparse.ArgumentParser:
     ur = users.add_parser("remove", parents=[data], help="delete a user; its token stops working at once")
     ur.add_argument("name")
     ur.set_defaults(run=cmd_users_remove)
+    um = users.add_parser(
+        "admin", parents=[data], help="make an existing user an admin (one made at a single sign-on too), or not"
+    )
+    um.add_argument("name")
+    um.add_argument("--revoke", action="store_true", help="take the admin role away instead")
+    um.set_defaults(run=cmd_users_admin)
     ut = users.add_parser("token", parents=[data], help="replace a user's token (tokens cannot be shown again)")
     ut.add_argument("name")
     ut.add_argument("--rotate", action="store_true", help="make a new token and print it; the old one stops working")

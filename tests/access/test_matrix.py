@@ -108,6 +108,17 @@ class World:
             self.lab.owner.post(f"/collections/{self.collection}/webhooks", json=body).raise_for_status().json()["id"]
         )
 
+    def truth_file(self) -> dict:
+        """The identity ground truth of member m1 (the template and its shape are ellipsoids alike)."""
+        vertices = self.lab.meshes[self.lab.shapes[0]].n_file_vertices
+        return {"file": ("truth.txt", "".join(f"{i}\n" for i in range(vertices)).encode())}
+
+    def with_truth(self) -> str:
+        """Member m1 of the owner's collection, a check member now."""
+        truth = f"/collections/{self.collection}/members/m1/truth"
+        self.lab.owner.put(truth, files=self.truth_file()).raise_for_status()
+        return "m1"
+
     def submitted_collection(self) -> str:
         """A fresh collection of the owner whose member m1 (with the session's curve) is submitted for review."""
         collection_id = self.fresh_collection()
@@ -285,6 +296,15 @@ RULES: dict[tuple[str, str], Rule] = {
     ),
     ("get", "/collections/{collection_id}/annotations"): Rule(lambda w: Call(collection(w)), other=404),
     ("get", "/collections/{collection_id}/agreement"): Rule(lambda w: Call(collection(w)), other=404),
+    ("put", "/collections/{collection_id}/members/{member_id}/truth"): Rule(
+        lambda w: Call(collection(w, member_id="m1"), files=w.truth_file()), other=404
+    ),
+    ("get", "/collections/{collection_id}/members/{member_id}/truth"): Rule(
+        lambda w: Call(collection(w, member_id=w.with_truth())), other=404
+    ),
+    ("delete", "/collections/{collection_id}/members/{member_id}/truth"): Rule(
+        lambda w: Call(collection(w, member_id=w.with_truth())), other=404
+    ),
     ("post", "/collections/{collection_id}/runs"): Rule(
         lambda w: Call(collection(w), json={"converter": "nearest-neighbor", "members": ["m1"]}), other=404
     ),

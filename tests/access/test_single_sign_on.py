@@ -7,6 +7,8 @@ and the client secret nowhere."""
 from __future__ import annotations
 
 import re
+import subprocess
+import sys
 from urllib.parse import parse_qs, urlsplit
 
 import httpx
@@ -239,3 +241,28 @@ def test_the_server_log_holds_no_secret_and_no_code(lab):
     log = api.log.read_text()
     assert CALLBACK in log and provider.client_secret not in log
     assert not re.search(r"[?&](code|state)=(?!\[redacted\])", log)
+
+
+def test_the_command_line_makes_a_signed_in_person_an_admin_and_takes_it_away(lab):
+    """A sign-in makes no admin; ``curvefm users admin NAME`` makes that user one, effective at their next request
+    (their login cookie reads the audit log), ``--revoke`` takes it away; both audited, an unknown name refused."""
+    api, provider = lab
+    client = sign_in(api, provider, "ada")
+    assert client.get("/audit").status_code == 403
+
+    def users_admin(*args: str) -> subprocess.CompletedProcess:
+        command = [sys.executable, "-m", "curvefm.cli", "users", "admin", *args, "--data", str(api.data_dir)]
+        return subprocess.run(command, capture_output=True, text=True)
+
+    made = users_admin("ada")
+    assert made.returncode == 0 and "ada is an admin now" in made.stdout, made.stderr
+    assert client.get("/auth/me").json() == {"name": "ada", "admin": True}
+    assert client.get("/audit").status_code == 200
+    assert users_admin("ada", "--revoke").returncode == 0
+    assert client.get("/auth/me").json() == {"name": "ada", "admin": False}
+    assert client.get("/audit").status_code == 403
+    refused = users_admin("nobody")
+    assert refused.returncode == 2 and "no user 'nobody'" in refused.stderr
+
+    changes = [(e["user"], e["detail"]) for e in audit_of(api.data_dir).read() if e["action"] == "user.admin"]
+    assert changes[-2:] == [("cli", {"admin": True, "was": False}), ("cli", {"admin": False, "was": True})]

@@ -232,7 +232,7 @@ def test_a_member_answer_on_an_old_revision_is_refused(client, shape_ids):
     assert [curve.path_target for curve in member_session.curves] == [first.path_target]
 
 
-def test_a_member_is_reviewed_run_when_accepted_and_annotated_twice(client, api, shape_ids):
+def test_a_member_is_reviewed_run_when_accepted_and_annotated_twice(client, api, shape_ids, tmp_path):
     s = client.session(*shape_ids, k=K)
     s.add_curve(*CURVES[0])
     c = client.collection(shape_ids[0], from_session=s.id, k=K, name="reviewed")
@@ -259,3 +259,16 @@ def test_a_member_is_reviewed_run_when_accepted_and_annotated_twice(client, api,
     (member,) = c.agreement()["members"]
     assert member["member"] == "m1" and member["pairs"][0]["curves"][0]["template_curve"] == "t1"
     assert member["pairs"][0]["curves"][0]["start"] > 0  # the two answers start at different vertices
+
+    vertices = {shape["id"]: shape["n_file_vertices"] for shape in client.shapes()}
+    truth = np.arange(vertices[shape_ids[0]]) % vertices[shape_ids[1]]
+    np.save(tmp_path / "m1.npy", truth)
+    assert c.set_truth("m1", tmp_path / "m1.npy")["known"] == truth.size
+    assert c.truth("m1")["truth"] == truth.tolist()
+    scored = c.agreement()["checks"]["members"][0]["annotations"]
+    assert [a["annotator"] for a in scored] == [None, "abel"] and all(a["error"] >= 0 for a in scored)
+    with Client(api.url, token=tokens["abel"]) as abel:
+        assert abel.open_collection(c.id).agreement()["checks"] is None
+    c.remove_truth("m1")
+    with pytest.raises(NotFound):
+        c.truth("m1")

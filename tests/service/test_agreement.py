@@ -9,46 +9,21 @@ import io
 import json
 
 import numpy as np
+from support.agreement import beside, faust_collection, served_map
 
-from curvefm.geometry import farthest_point_sampling, load_mesh, pair_geodesic_distances
-from curvefm.pointwise import pointwise_from_both
+from curvefm.geometry import farthest_point_sampling, pair_geodesic_distances
 from curvefm.store import Store
 
-K = 40
 POINTS = 300
-
-
-def beside(mesh, vertex: int, rank: int = 12) -> int:
-    """The ``rank``-th nearest vertex to ``vertex`` (Euclidean): a click a little off the true endpoint."""
-    distances = np.linalg.norm(mesh.vertices - mesh.vertices[vertex], axis=1)
-    return int(np.argsort(distances)[rank])
-
-
-def served_map(client, store: Store, session_id: str, template: str, member: str, rows: np.ndarray) -> np.ndarray:
-    """The session's live map at the template vertices ``rows``: member vertices, from its served functional maps
-    and the stored bases."""
-    maps = client.get(f"/sessions/{session_id}/map").raise_for_status().json()
-    C_MN, C_NM = np.array(maps["C_source_to_target"]), np.array(maps["C_target_to_source"])
-    basis_M, basis_N = store.find_basis(template, K), store.find_basis(member, K)
-    return pointwise_from_both(C_NM, C_MN, basis_N, basis_M, rows=rows)
 
 
 def test_double_annotation_agreement_against_a_hand_computation(processes, tmp_path, shared_data):
     api = processes.api(tmp_path / "data", env={"CURVEFM_AGREEMENT_POINTS": str(POINTS)})
     owner = api.client
-    paths = [shared_data / "faust" / f"tr_reg_{n}.off" for n in ("000", "001")]
-    template, member = (api.upload(path) for path in paths)
-    template_mesh, member_mesh = (load_mesh(path) for path in paths)
-    ends = farthest_point_sampling(template_mesh, 12).tolist()
-    curves = [{"waypoints": pair} for pair in zip(ends[0::2], ends[1::2], strict=True)]
-    body = {"template": template, "curves": curves, "members": [member], "k": K}
-    view = owner.post("/collections", json=body).raise_for_status().json()
-    base = f"/collections/{view['collection']['id']}"
-    for job in [m["basis_job"] for m in view["members"]]:
-        api.wait_job(job)
-    ann, abe = api.client_for("ann"), api.client_for("abe")
-    for name in ("ann", "abe"):
-        owner.put(f"{base}/roles/{name}", json={"role": "annotator"}).raise_for_status()
+    faust = faust_collection(api, shared_data, ("000", "001"), ("ann", "abe"))
+    base, template, (member,), member_mesh = faust.base, faust.template, faust.members, faust.member_meshes[0]
+    curves, template_mesh = faust.curves, faust.template_mesh
+    ann, abe = faust.clients["ann"], faust.clients["abe"]
     owner.put(f"{base}/members/m1/assignee", json={"user": "ann"}).raise_for_status()
     further = owner.post(f"{base}/members/m1/annotations", json={"user": "abe"})
     assert further.status_code == 201, further.text

@@ -250,3 +250,28 @@ def test_who_may_register_and_what_is_refused(lab, receiver, collection):
     assert lab.owner.get(hooks).json() == []
     assert lab.owner.delete(f"{hooks}/{hook.json()['id']}").status_code == 404
     assert lab.owner.get(f"{hooks}/{hook.json()['id']}/deliveries").status_code == 404
+
+
+def test_a_member_whose_session_is_deleted_directly_is_announced_removed(lab, receiver, collection):
+    """Deleting a member's session (DELETE /sessions/{id}) removes the member: announced as DELETE .../members/{m}
+    announces it, once, its delivery recorded with the deletion (listed as soon as the deletion answered)."""
+    hook = _register(lab, collection, f"{receiver.url}/ok", ["member.removed"])
+    (member,) = lab.owner.get(f"/collections/{collection}").raise_for_status().json()["members"]
+    lab.owner.delete(f"/sessions/{member['session']}").raise_for_status()
+    log = lab.owner.get(f"/collections/{collection}/webhooks/{hook['id']}/deliveries").raise_for_status()
+    assert [d["event"] for d in log.json()] == ["member.removed"]
+    assert lab.owner.get(f"/collections/{collection}").json()["members"] == []
+
+    deadline = time.monotonic() + 60
+    while not _posts_of(receiver, collection) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    time.sleep(1)  # nothing more arrives: the event once
+    (body,) = _posts_of(receiver, collection)
+    assert (body["event"], body["data"]) == ("member.removed", {"member": member["id"], "shape": member["shape"]})
+
+
+def _posts_of(receiver: Receiver, collection: str) -> list[dict]:
+    """The bodies of the posts to ``/ok`` about ``collection``."""
+    with receiver.lock:
+        bodies = [json.loads(p["body"]) for p in receiver.posts if p["path"] == "/ok"]
+    return [body for body in bodies if body["collection"] == collection]

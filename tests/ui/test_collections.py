@@ -280,7 +280,8 @@ def test_a_manager_assigns_a_member_by_hand_asks_a_second_annotation_and_sees_ag
     """The owner assigns m1 to one annotator with the per-member control, asks another for a further annotation of
     it (both land in the API; the other finds it in their work, marked as a further annotation), and, once both
     annotations have curves, the Agreement section lists m1 with the report's distance; before that it shows its
-    empty state."""
+    empty state. Made a check member with *Ground truth…*, m1 shows each annotator's error to the owner and nothing
+    of it to the annotator."""
     api, view = served
     template, shape = view["collection"]["template"], view["members"][0]["shape"]
     body = {"name": "agreed", "template": template, "curves": TEMPLATE_CURVES, "members": [shape], "k": K}
@@ -347,6 +348,32 @@ def test_a_manager_assigns_a_member_by_hand_asks_a_second_annotation_and_sees_ag
     assert page.text_content("#agreement-summary").startswith(
         f"Agreement: mean map distance {report['map_distance']:.4f}"
     )
+    assert page.is_hidden("#check-summary")
+
+    # m1 becomes a check member (a bad file first, refused by name): the owner sees each annotator's error, bo (an
+    # annotator) sees nothing of it
+    rows, known = (api.client.get(f"/shapes/{s}").json()["n_file_vertices"] for s in (template, shape))
+    truth = "".join(f"{v % known}\n" for v in range(rows)).encode()
+    page.select_option("#assign-member-select", "m1")
+    page.set_input_files("#truth-input", files=[{"name": "short.txt", "mimeType": "text/plain", "buffer": b"0\n"}])
+    page.wait_for_selector(".toast:has-text('needs one per template vertex')")
+    assert api.client.get(f"{base}/members/m1/truth").status_code == 404
+    page.set_input_files("#truth-input", files=[{"name": "truth.txt", "mimeType": "text/plain", "buffer": truth}])
+    page.wait_for_selector(f".toast:has-text('Member m1 is a check member now ({rows} of {rows}')")
+    assert api.client.get(f"{base}/members/m1/truth").raise_for_status().json()["rows"] == rows
+    page.click("#show-agreement")
+    check_row = '#check-list li[data-member="m1"]'
+    page.wait_for_selector(check_row)
+    checks = api.client.get(f"{base}/agreement").raise_for_status().json()["checks"]
+    shown = page.text_content(check_row)
+    assert [a["annotator"] for a in checks["members"][0]["annotations"]] == ["ann", "bo"]
+    for scored in checks["members"][0]["annotations"]:
+        assert f"{scored['annotator']} {scored['error']:.4f}" in shown, shown
+    assert page.text_content("#check-summary").startswith(f"Check members: mean error {checks['error']:.4f}")
+    asked.select_option("#collection-select", collection_id)
+    asked.click("#show-agreement")
+    asked.wait_for_selector('#agreement-list li[data-member="m1"]')
+    assert asked.is_hidden("#check-summary") and asked.locator("#check-list li").count() == 0
     assert not errors, errors
 
 

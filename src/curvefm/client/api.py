@@ -523,8 +523,25 @@ class Collection:
 
     def agreement(self) -> dict[str, Any]:
         """Agreement between annotators per member annotated twice or more and for the collection (map and
-        endpoint distances by sqrt(area), members flagged above the threshold)."""
+        endpoint distances by sqrt(area), members flagged above the threshold); for managers, ``checks``: each
+        annotator's error on the check members (:meth:`set_truth`)."""
         return self.client.json("GET", f"{self.path}/agreement")
+
+    def set_truth(self, member: str, path: str | os.PathLike[str]) -> dict[str, Any]:
+        """Make ``member`` a check member: its ground truth from a file (per template vertex the member vertex:
+        ``.npy``, ``.vts`` 1-based, or text with one 0-based id per line; -1: unknown); a manager's. Returns its
+        summary (``rows``, ``known``, ``set_by``, ``set_at``)."""
+        path = Path(path)
+        with open(path, "rb") as f:
+            return self.client.json("PUT", f"{self.path}/members/{member}/truth", files={"file": (path.name, f)})
+
+    def truth(self, member: str) -> dict[str, Any]:
+        """The check member's ground truth (``truth``: the member vertex of each template vertex, -1: unknown)."""
+        return self.client.json("GET", f"{self.path}/members/{member}/truth")
+
+    def remove_truth(self, member: str) -> None:
+        """Take the member's ground truth away: it is no check member any more."""
+        self.client.request("DELETE", f"{self.path}/members/{member}/truth")
 
     def roles(self) -> list[dict[str, Any]]:
         """Who holds which role (``user``, ``user_id``, ``role``, ``granted_by``, ``granted_at``), its creator

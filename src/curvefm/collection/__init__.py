@@ -9,7 +9,8 @@ run's maps come as one archive, member-to-member maps composed through the templ
 * ``progress``: where each member and run stands (:class:`JobView` is how a queue's job is seen);
 * ``archive``: a run's maps per member (:class:`MemberMaps`) as ``.npz`` or a zip of text files;
 * ``composition``: member-to-member maps through the template;
-* ``agreement``: how far two annotators' answers on a member lie apart (double annotation).
+* ``agreement``: how far two annotators' answers on a member lie apart (double annotation);
+* ``checks``: check members' ground truth, and each annotation's accuracy against it.
 """
 
 from curvefm.collection.agreement import (
@@ -22,6 +23,15 @@ from curvefm.collection.agreement import (
     mean_of_known,
 )
 from curvefm.collection.archive import MemberMaps, composed, write_npz, write_zip
+from curvefm.collection.checks import (
+    Accuracy,
+    AnnotatorAccuracy,
+    accuracy,
+    accuracy_by_annotator,
+    checked_truth,
+    read_truth,
+    truth_pairs,
+)
 from curvefm.collection.composition import compose_functional, compose_pointwise
 from curvefm.collection.editing import CollectionEditor, SubmitRefine
 from curvefm.collection.progress import (
@@ -46,6 +56,13 @@ from curvefm.collection.record import (
 )
 
 __all__ = [
+    "Accuracy",
+    "AnnotatorAccuracy",
+    "accuracy",
+    "accuracy_by_annotator",
+    "checked_truth",
+    "read_truth",
+    "truth_pairs",
     "Annotated",
     "AnnotatorAgreement",
     "CurveEnds",

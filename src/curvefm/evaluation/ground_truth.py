@@ -7,6 +7,7 @@ import re
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import IO
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -57,15 +58,21 @@ def _read_int_column(path: PathArg, column: int = 0, what: str = "ids") -> np.nd
     path = Path(path)
     if not path.is_file():
         raise NotFound(f"ground-truth file not found: {path}")
+    return parse_int_column(path, path.name, column, what)
+
+
+def parse_int_column(source: PathArg | IO[bytes], name: str, column: int = 0, what: str = "ids") -> np.ndarray:
+    """Column ``column`` of a whitespace-separated table of integers (a file or an open binary stream, ``name``
+    in messages): the ground-truth files' text layout."""
     try:
-        data = np.loadtxt(path, ndmin=2)
+        data = np.loadtxt(source, ndmin=2)
     except ValueError as exc:
-        raise InvalidInput(f"{path.name} is not a table of numbers ({exc})") from None
+        raise InvalidInput(f"{name} is not a table of numbers ({exc})") from None
     if data.shape[1] <= column:
-        raise InvalidInput(f"{path.name} has {data.shape[1]} columns; expected at least {column + 1} ({what})")
+        raise InvalidInput(f"{name} has {data.shape[1]} columns; expected at least {column + 1} ({what})")
     values = data[:, column]
-    if not np.all(values == np.round(values)):
-        raise InvalidInput(f"{path.name}: {what} must be integers")
+    if not np.all(np.isfinite(values) & (values == np.round(values))):
+        raise InvalidInput(f"{name}: {what} must be integers")
     return values.astype(np.int64)
 
 

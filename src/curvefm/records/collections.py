@@ -7,8 +7,9 @@ transaction as the member (:meth:`Collections.add_members`), deleting the collec
 (:meth:`Collections.delete` returns their jobs, whose results the caller deletes), and deleting a member's
 session alone removes the member (the collection stays readable). A run remembers each member's job id; when
 the job's record expires, ``run_members.job_id`` becomes NULL and :meth:`Collections.expired_jobs` names it.
-Roles, assignments, review states (``member_reviews``) and further annotations (``member_annotations``, each with a
-session of its own that goes with its member) are rows beside them.
+Roles, assignments, review states (``member_reviews``), further annotations (``member_annotations``, each with a
+session of its own that goes with its member) and check members' ground truths (``member_truths``) are rows beside
+them.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from dataclasses import dataclass
 from functools import partial
 from typing import Literal
 
+import numpy as np
 from sqlalchemy import (
     ColumnElement,
     Connection,
@@ -137,6 +139,17 @@ class Annotation:
     session_id: str
     further: bool
     """A further annotation (double annotation), not the member's own session."""
+
+
+@dataclass(frozen=True)
+class Truth:
+    """A check member's ground truth: ``truth[v]`` is the member vertex (file id, -1: unknown) of template vertex
+    ``v`` (file id); who gave it and when."""
+
+    member_id: str
+    truth: np.ndarray
+    set_by: str | None
+    set_at: float
 
 
 @dataclass(frozen=True)
@@ -520,6 +533,54 @@ class Collections:
         where = [x.collection_id == collection_id] + ([x.member_id == member_id] if member_id else [])
         return list(tx.execute(select(x.session_id).where(*where)).scalars())
 
+    # -- check members (ground truth) -------------------------------------------------------------------------
+    def truth(self, collection_id: str, member_id: str) -> Truth | None:
+        """The member's ground truth (None: it is no check member)."""
+        t = m.MemberTruth
+        with self.db.read() as conn:
+            row = conn.execute(
+                select(t.truth, m.User.name.label("set_by"), t.set_at)
+                .outerjoin(m.User, m.User.id == t.set_by)
+                .where(t.collection_id == collection_id, t.member_id == member_id)
+            ).first()
+        if row is None:
+            return None
+        return Truth(member_id, np.frombuffer(row.truth, dtype="<i4").astype(np.int64), row.set_by, row.set_at)
+
+    def check_members(self, collection_id: str) -> builtins.list[str]:
+        """The collection's check members (those with a ground truth), in the members' order."""
+        t, member = m.MemberTruth, m.Member
+        with self.db.read() as conn:
+            return list(
+                conn.execute(
+                    select(t.member_id)
+                    .join(member, (member.collection_id == t.collection_id) & (member.id == t.member_id))
+                    .where(t.collection_id == collection_id)
+                    .order_by(member.position)
+                ).scalars()
+            )
+
+    def set_truth(self, collection_id: str, member_id: str, truth: np.ndarray, by: int | None) -> bool:
+        """Give the member its ground truth (replacing one it had; returns whether it had one); 404 for a member
+        the collection does not have."""
+        t = m.MemberTruth
+        mine = (t.collection_id == collection_id) & (t.member_id == member_id)
+        with self.db.write() as tx:
+            _require_member(tx, collection_id, member_id)
+            had = tx.execute(delete(t).where(mine)).rowcount > 0
+            data = np.asarray(truth, dtype="<i4").tobytes()
+            tx.execute(
+                insert(t).values(collection_id=collection_id, member_id=member_id, truth=data, set_by=by, set_at=now())
+            )
+        return had
+
+    def remove_truth(self, collection_id: str, member_id: str) -> bool:
+        """Take the member's ground truth away; returns whether it had one."""
+        t = m.MemberTruth
+        with self.db.write() as tx:
+            done = tx.execute(delete(t).where(t.collection_id == collection_id, t.member_id == member_id))
+        return done.rowcount > 0
+
     # -- what the file store offered, for a swap ------------------------------------------------------------
     lock_timeout_s = 30.0
     """How long a writer waits for another (the database's busy timeout; there are no record locks)."""
@@ -670,6 +731,12 @@ def _standing_query(viewer: Viewer) -> Select[str, bool, str, str, bool]:
     return select(
         c.id.label("collection_id"), creator.label("creator"), c.sharing, r.role, assigning.label("assigning")
     ).outerjoin(r, and_(r.collection_id == c.id, r.user_id == viewer.user_id))
+
+
+def _require_member(conn: Connection, collection_id: str, member_id: str) -> None:
+    known = select(m.Member.id).where(m.Member.collection_id == collection_id, m.Member.id == member_id)
+    if conn.execute(known).first() is None:
+        raise NotFound(f"no member '{shown(member_id)}' in collection {collection_id}")
 
 
 def _revision(conn: Connection, collection_id: str) -> int | None:

@@ -409,3 +409,17 @@ class ReviewComment(Base):
     resolved_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
     resolved_at: Mapped[float | None] = mapped_column(Double)
     __table_args__ = (Index("ix_review_comments_member", "collection_id", "member_id", "created_at"),)
+
+
+class MemberTruth(Base):
+    """A check member's ground truth: for every template vertex (file ids, in order) the member vertex it
+    corresponds to (file id, -1: unknown), as little-endian int32 bytes, and who gave it when. Its presence makes
+    the member a check member. Keyed by the member's id like :class:`Assignment` (member rows are replaced on a
+    collection's write; member ids are never reused), so a removed member's row is inert."""
+
+    __tablename__ = "member_truths"
+    collection_id: Mapped[str] = mapped_column(ForeignKey("collections.id", ondelete="CASCADE"), primary_key=True)
+    member_id: Mapped[str] = mapped_column(String(16), primary_key=True)
+    truth: Mapped[bytes] = mapped_column(LargeBinary)
+    set_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
+    set_at: Mapped[float] = mapped_column(Double)

@@ -39,6 +39,7 @@ from curvefm.records.common import (
 )
 from curvefm.records.engine import Database, shared_database
 from curvefm.records.users import owner_id, owner_name
+from curvefm.records.webhooks import announce_member_removed
 from curvefm.session.record import CurveRecord, SessionRecord, UnknownSession
 from curvefm.store import Store
 
@@ -282,8 +283,9 @@ class Sessions:
         return written
 
     def delete(self, session_id: str, conn: Connection | None = None) -> builtins.list[str]:
-        """Delete the session with its curves (and its collection membership); returns the ids of the
-        refinement jobs run from it (their results are the caller's to delete; their records stay)."""
+        """Delete the session with its curves (and its collection membership, announced to the collection's
+        webhooks in the same transaction); returns the ids of the refinement jobs run from it (their results are the
+        caller's to delete; their records stay)."""
         with self.db.joined(conn) as tx:
             jobs = self._jobs(tx, session_id)
             # a collection losing the member moves to its next revision: a write from a copy read before fails
@@ -293,6 +295,7 @@ class Sessions:
                 .where(m.Collection.id.in_(member_of))
                 .values(revision=m.Collection.revision + 1, updated_at=now())
             )
+            announce_member_removed(tx, session_id)
             if tx.execute(delete(m.Session).where(m.Session.id == session_id)).rowcount != 1:
                 raise UnknownSession(session_id)
         return jobs

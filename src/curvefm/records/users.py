@@ -144,6 +144,14 @@ class Users:
             user = self.require(name, conn)
             conn.execute(update(m.User).where(m.User.id == user.id).values(removed_at=now(), token_sha256=None))
 
+    def set_admin(self, name: str, admin: bool) -> bool:
+        """Make ``name`` an admin or take it away (a user made at a single sign-on too); returns whether they were
+        one. Takes effect at their next request: every request reads the user afresh."""
+        with self.db.write() as conn:
+            user = self.require(name, conn)
+            conn.execute(update(m.User).where(m.User.id == user.id).values(admin=admin))
+        return user.admin
+
     def rotate(self, name: str) -> str:
         """A new token for ``name``; the old one stops working at once."""
         token = new_token()

@@ -250,6 +250,17 @@ def notify(
     return ids
 
 
+def announce_member_removed(conn: Connection, session_id: str) -> None:
+    """The session is being deleted (in ``conn``'s transaction, before its row goes): when it is a collection's
+    member, the member goes with it; announce ``member.removed``, whether the member was removed as such or its
+    session was deleted directly."""
+    members = conn.execute(
+        select(m.Member.collection_id, m.Member.id, m.Member.shape).where(m.Member.session_id == session_id)
+    ).all()
+    for collection_id, member_id, shape in members:
+        notify(conn, collection_id, WebhookEvent.MEMBER_REMOVED, {"member": member_id, "shape": shape})
+
+
 def announce_run_end(conn: Connection, job_id: str) -> None:
     """The job just ended (in ``conn``'s transaction): announce the end of each run of which it was the last job
     to end. The run's row is locked first, so of two last jobs ending at once the second sees the first's end."""

@@ -17,6 +17,7 @@ from curvefm.errors import LimitExceeded
 from curvefm.service import (
     routes_audit,
     routes_auth,
+    routes_checks,
     routes_collections,
     routes_comments,
     routes_events,
@@ -157,6 +158,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         routes_webhooks,
         routes_reviews,
         routes_comments,
+        routes_checks,
         routes_jobs,
         routes_audit,
     )

@@ -351,6 +351,47 @@ class AnnotatorAgreementView(BaseModel):
     endpoint_distance: float | None = Field(description="the mean endpoint distance of those pairs")
 
 
+class AnnotationAccuracyView(BaseModel):
+    annotator: str | None = Field(description="who annotated (null: the member's own session, assigned to no one)")
+    session: str
+    further: bool = Field(description="a further annotation, not the member's own session")
+    error: float | None = Field(
+        description="mean geodesic distance on the member between the annotator's images of the compared template "
+        "vertices and their true partners, by sqrt(area of the member); never at a curve end the annotator gave "
+        "(null: nothing to score)"
+    )
+    scored: int = Field(description="template vertices scored")
+    unreachable: int = Field(description="scored template vertices whose image lies on another component")
+
+
+class MemberAccuracy(BaseModel):
+    member: str
+    annotations: list[AnnotationAccuracyView] = Field(description="each annotation of the member with curves")
+
+
+class AnnotatorAccuracyView(BaseModel):
+    annotator: str
+    members: int = Field(description="check members they annotated with curves")
+    error: float | None = Field(description="the mean of their errors over those members (null: none scored)")
+
+
+class CheckReport(BaseModel):
+    members: list[MemberAccuracy] = Field(description="the check members (with a ground truth), in order")
+    annotators: list[AnnotatorAccuracyView] = Field(description="per annotator, by name")
+    error: float | None = Field(description="the mean over every scored annotation (null: none)")
+
+
+class TruthView(BaseModel):
+    member: str
+    rows: int = Field(description="template vertices (one row each)")
+    known: int = Field(description="rows with a known partner (not -1)")
+    set_by: str | None = Field(description="who gave it (null: a removed user)")
+    set_at: float
+    truth: list[int] | None = Field(
+        None, description="per template vertex (file ids), its member vertex (file id, -1: unknown); GET only"
+    )
+
+
 class AgreementReport(BaseModel):
     members: list[MemberAgreement] = Field(description="the members annotated twice or more, both with curves")
     annotators: list[AnnotatorAgreementView] = Field(
@@ -361,6 +402,11 @@ class AgreementReport(BaseModel):
     threshold: float = Field(description="CURVEFM_AGREEMENT_THRESHOLD, units of sqrt(area)")
     points: int = Field(description="template vertices compared (CURVEFM_AGREEMENT_POINTS at most)")
     flagged: list[str] = Field(description="the members above the threshold")
+    checks: CheckReport | None = Field(
+        None,
+        description="each annotator's accuracy on the check members (those with a ground truth): only for those "
+        "who manage the collection, so that annotators cannot tell a check member (null otherwise, or none)",
+    )
 
 
 class AnnotatorProgress(BaseModel):

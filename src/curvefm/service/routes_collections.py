@@ -212,12 +212,10 @@ def remove_member(
     """Remove a member: its session, its curves and the result files of its refinement jobs go with it (running
     ones are canceled first), and it leaves the collection's runs. Whoever may add members (an owner, a manager,
     an admin, or every user when the collection is shared editable)."""
-    record = collection_for(services, user, collection_id, "edit")
-    shape = record.member(member_id).shape
-    for job_id in services.collections.remove_member(collection_id, member_id):
+    collection_for(services, user, collection_id, "edit")
+    for job_id in services.collections.remove_member(collection_id, member_id):  # (announces member.removed)
         discard_job(services, job_id)
     services.audit.record(user.name, "collection.remove_member", collection_id, {"member": member_id})
-    services.webhooks.notify(collection_id, WebhookEvent.MEMBER_REMOVED, {"member": member_id, "shape": shape})
     return Response(status_code=204)
 
 
@@ -576,12 +574,16 @@ def get_archive(
     and ``map_template_to_member``, and ``summary.json`` (members, shapes, sessions, quality figures). ``zip``:
     the same as ``<member>/<name>.txt`` files. When the collection has double annotations, ``summary.json``
     holds the agreement report too (``agreement``, as ``GET .../agreement``; 409 while a basis it needs is not
-    ready). 409 names the members still pending or failed."""
-    record = collection_for(services, user, collection_id, "read")
+    ready), and so it does with the check members' accuracy (``agreement.checks``) when the collection has check
+    members and the caller manages it (no one else learns which members are checks). 409 names the members still
+    pending or failed."""
+    manages = "manage" in check_collection(services, user, collection_id, "read")
+    record = services.collections.record(collection_id)
     run, maps = _maps(services, record, run_id)
     out = io.BytesIO()
     doubled = any(a.further for a in services.collections.records.annotations(collection_id))
-    agreement = agreement_report(services, record).model_dump() if doubled else None
+    checks = manages and bool(services.collections.records.check_members(collection_id))
+    agreement = agreement_report(services, record, checks).model_dump() if doubled or checks else None
     (write_npz if kind == "npz" else write_zip)(out, maps, archive_summary(record, run, maps, agreement))
     filename = f"collection_{collection_id}_{run_id}.{kind}"
     headers = {"Content-Disposition": f'attachment; filename="{filename}"'}

@@ -18,16 +18,20 @@ from sqlalchemy import Connection
 
 from curvefm.access import User
 from curvefm.collection import (
+    Accuracy,
     Annotated,
     AnnotatorAgreement,
     CollectionRecord,
     PairAgreement,
+    accuracy,
+    accuracy_by_annotator,
     agreement,
     by_annotator,
     mean_of_known,
+    truth_pairs,
 )
 from curvefm.errors import Conflict, InvalidInput
-from curvefm.geometry import farthest_point_sampling
+from curvefm.geometry import Mesh, farthest_point_sampling
 from curvefm.pointwise import pointwise_from_both
 from curvefm.records.collections import Annotation, Review, ReviewState
 from curvefm.service.auth import AUTHENTICATED, CurrentUser
@@ -35,11 +39,15 @@ from curvefm.service.deps import Services, ServicesDep
 from curvefm.service.errors import error_responses
 from curvefm.service.models import (
     AgreementReport,
+    AnnotationAccuracyView,
     AnnotationRequest,
     AnnotationView,
+    AnnotatorAccuracyView,
     AnnotatorAgreementView,
+    CheckReport,
     CurveEndsAgreement,
     ManyAnnotationsRequest,
+    MemberAccuracy,
     MemberAgreement,
     MemberReview,
     PairAgreementView,
@@ -208,23 +216,32 @@ def get_agreement(collection_id: str, services: ServicesDep, user: CurrentUser) 
     pair of annotations the mean geodesic distance on the member between their pointwise maps of the template
     (at ``CURVEFM_AGREEMENT_POINTS`` template vertices spread by farthest-point sampling), and per template curve
     both answered the distance between their starts and between their ends, all by sqrt(area of the member); per
-    member the mean over its pairs, flagged above ``CURVEFM_AGREEMENT_THRESHOLD``; and the project's means. 409
-    while a basis it needs is not ready. Whoever may read the collection."""
-    check_collection(services, user, collection_id, "read")
-    return agreement_report(services, services.collections.record(collection_id))
+    member the mean over its pairs, flagged above ``CURVEFM_AGREEMENT_THRESHOLD``; and the project's means. For
+    those who manage the collection, ``checks``: every annotation of a check member (one with a ground truth, ``PUT
+    .../members/{member}/truth``) scored against its truth at the same template vertices, and each annotator's mean
+    error. 409 while a basis it needs is not ready. Whoever may read the collection."""
+    held = check_collection(services, user, collection_id, "read")
+    return agreement_report(services, services.collections.record(collection_id), checks="manage" in held)
 
 
-def agreement_report(services: Services, record: CollectionRecord) -> AgreementReport:
-    """The agreement between the collection's annotators (:func:`get_agreement`)."""
+def agreement_report(services: Services, record: CollectionRecord, checks: bool = False) -> AgreementReport:
+    """The agreement between the collection's annotators (:func:`get_agreement`); with ``checks``, their accuracy
+    on the check members too (for those who manage the collection only)."""
     by_member: dict[str, list[Annotation]] = {}
     for annotation in services.collections.records.annotations(record.id):
         if services.sessions.record(annotation.session_id).curves:
             by_member.setdefault(annotation.member_id, []).append(annotation)
-    twice = {member: annotations for member, annotations in by_member.items() if len(annotations) > 1}
+    twice = [member for member, annotations in by_member.items() if len(annotations) > 1]
+    check_members = services.collections.records.check_members(record.id) if checks else []
     template = services.live.mesh(record.template, "template")
     rows = farthest_point_sampling(template, min(services.settings.agreement_points, template.n_vertices))
+    answers = {
+        member: [(a, _annotated(services, a, rows)) for a in annotations]
+        for member, annotations in by_member.items()
+        if member in twice or member in check_members
+    }
     threshold = services.settings.agreement_threshold
-    compared = {member: _member_pairs(services, record, member, twice[member], rows) for member in twice}
+    compared = {member: _member_pairs(services, record, member, [a for _, a in answers[member]]) for member in twice}
     members = [_member_agreement(member, pairs, threshold) for member, pairs in compared.items()]
     annotators = by_annotator([(member, pair) for member, pairs in compared.items() for pair in pairs])
     return AgreementReport(
@@ -235,15 +252,56 @@ def agreement_report(services: Services, record: CollectionRecord) -> AgreementR
         threshold=threshold,
         points=len(rows),
         flagged=[m.member for m in members if m.flagged],
+        checks=_check_report(services, record, template, rows, check_members, answers) if check_members else None,
     )
 
 
 def _member_pairs(
-    services: Services, record: CollectionRecord, member_id: str, annotations: list[Annotation], rows: np.ndarray
+    services: Services, record: CollectionRecord, member_id: str, answers: list[Annotated]
 ) -> list[PairAgreement]:
     member = services.live.mesh(record.member(member_id).shape, "member")
-    answers = [_annotated(services, a, rows) for a in annotations]
     return [agreement(a, b, member) for a, b in combinations(answers, 2)]
+
+
+def _check_report(
+    services: Services,
+    record: CollectionRecord,
+    template: Mesh,
+    rows: np.ndarray,
+    check_members: list[str],
+    answers: dict[str, list[tuple[Annotation, Annotated]]],
+) -> CheckReport:
+    """Each annotation of a check member scored against its ground truth (:func:`curvefm.collection.accuracy`)."""
+    template_ends = {}
+    for curve in record.curves:
+        path = template.internal_ids(np.asarray(curve.path), "template curve vertex")
+        template_ends[curve.id] = (int(path[0]), int(path[-1]))
+    members, scores = [], []
+    for member_id in check_members:
+        mesh = services.live.mesh(record.member(member_id).shape, "member")
+        stored = services.collections.records.truth(record.id, member_id)
+        if stored is None:  # taken away meanwhile
+            continue
+        truth = truth_pairs(stored.truth, template, mesh)
+        mine = [(a, accuracy(answer, rows, truth, template_ends, mesh)) for a, answer in answers.get(member_id, [])]
+        scores += [(member_id, score) for _, score in mine]
+        members.append(MemberAccuracy(member=member_id, annotations=[_accuracy_view(a, s) for a, s in mine]))
+    return CheckReport(
+        members=members,
+        annotators=[AnnotatorAccuracyView(**vars(a)) for a in accuracy_by_annotator(scores)],
+        error=mean_of_known([score.error for _, score in scores]),
+    )
+
+
+def _accuracy_view(annotation: Annotation, score: Accuracy) -> AnnotationAccuracyView:
+    return AnnotationAccuracyView(
+        annotator=annotation.user,
+        session=annotation.session_id,
+        further=annotation.further,
+        error=score.error,
+        scored=score.scored,
+        unreachable=score.unreachable,
+    )
 
 
 def _member_agreement(member_id: str, pairs: list[PairAgreement], threshold: float) -> MemberAgreement:

@@ -225,6 +225,12 @@ export const api = {
   /** Ask `user` for a further, independent annotation of a member (double annotation). */
   addAnnotation: (id, member, user) =>
     request("POST", `/collections/${enc(id)}/members/${enc(member)}/annotations`, { json: { user } }),
+  /** Make a member a check member: its ground truth from a file (see PUT .../truth); resolves to its summary. */
+  setTruth(id, member, file) {
+    const form = new FormData();
+    form.append("file", file, file.name);
+    return request("PUT", `/collections/${enc(id)}/members/${enc(member)}/truth`, { body: form });
+  },
   /** Agreement between annotators: per member annotated twice or more its mean map distance, flagged above the
    * threshold (see AgreementReport). */
   agreement: (id) => request("GET", `/collections/${enc(id)}/agreement`),

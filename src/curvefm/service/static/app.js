@@ -12,6 +12,7 @@ import {
   createCollection,
   grantRole,
   runReady,
+  setTruth,
   showAgreementReport,
 } from "./controllers/collections.js";
 import { watchConnection } from "./controllers/connection.js";
@@ -96,6 +97,7 @@ function bindControls() {
   on("assign-evenly", "click", assignEvenly);
   on("assign-member-button", "click", assignMember);
   on("ask-annotation", "click", askAnnotation);
+  on("truth-input", "change", (event) => setTruth(event.target));
   on("show-agreement", "click", showAgreementReport);
   on("my-work", "click", (event) => event.target.closest("li") && openWork(event.target.closest("li")));
   on("template-curves", "click", clickTemplateList);

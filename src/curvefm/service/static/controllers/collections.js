@@ -1,7 +1,7 @@
 // What the Collections panel does: list the collections, open one (its members' progress is polled while their
 // bases compute), make the open session's curves a new collection's template, add members from the shape library,
 // remove a member (after asking), assign members to annotators (by hand or evenly), ask for a further annotation
-// of a member, show the agreement between annotators, and run the ready members' refinements as one batch whose progress is polled until
+// of a member, give a member its ground truth (a check member), show the agreement between annotators, and run the ready members' refinements as one batch whose progress is polled until
 // its archive can be downloaded.
 import { api, sleep } from "../api.js";
 import { setCollection, state } from "../store.js";
@@ -87,6 +87,21 @@ export async function askAnnotation() {
     toast(`${user} now annotates member ${member} too, in a session of their own.`);
   } catch (error) {
     report(error, "The further annotation could not be asked for");
+  }
+}
+
+/** "Ground truth…": the chosen file becomes the chosen member's ground truth (a check member, blind to annotators). */
+export async function setTruth(input) {
+  const id = state.collection.collection.id;
+  const member = $("assign-member-select").value;
+  const [file] = input.files;
+  input.value = ""; // the same file chosen again is a new choice
+  if (!member || !file) return toast("Choose a member, then its ground-truth file.", "error");
+  try {
+    const truth = await api.setTruth(id, member, file);
+    toast(`Member ${member} is a check member now (${truth.known} of ${truth.rows} template vertices known).`);
+  } catch (error) {
+    report(error, "The ground truth was refused");
   }
 }
 

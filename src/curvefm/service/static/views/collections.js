@@ -115,6 +115,29 @@ export function showAgreement(report) {
       return item;
     }),
   );
+  showChecks(report.checks, distance);
+}
+
+/** The annotators' accuracy on the check members (the report's `checks`, given to those who manage the collection
+ * only; null: none or not theirs to see): the mean error and each annotator's, then per check member each
+ * annotation's error against the truth, by sqrt(area). */
+function showChecks(checks, distance) {
+  $("check-summary").hidden = !checks;
+  $("check-list").replaceChildren();
+  if (!checks) return;
+  const annotators = checks.annotators.map((a) => `${a.annotator} ${distance(a.error)} (${a.members})`).join(" · ");
+  $("check-summary").textContent =
+    `Check members: mean error ${distance(checks.error)} (by sqrt(area))${annotators ? ` · ${annotators}` : ""}`;
+  $("check-list").replaceChildren(
+    ...checks.members.map((entry) => {
+      const item = document.createElement("li");
+      item.dataset.member = entry.member;
+      const member = state.collection.members.find((m) => m.id === entry.member);
+      const errors = entry.annotations.map((a) => `${a.annotator ?? "?"} ${distance(a.error)}`).join(", ");
+      item.textContent = `${member ? memberName(member) : ""} (${entry.member}) · check · ${errors || "not annotated yet"}`;
+      return item;
+    }),
+  );
 }
 
 /** "My work" (GET /me/work): the members assigned to the user and the further annotations asked of them, what is
