@@ -18,7 +18,7 @@ feet): such a curve is mapped onto itself by the mirror, its side tells nothing,
 Intrinsic signatures cannot tell mirror twins apart, which is what finds them: the first end also maximises
 ``unlike(v)``, the distance of v's wave kernel signature from the start's (over its largest), 0 at the start's
 twin. It joins a foot to a hand on FAUST (one curve: 0.042 instead of 0.156). Later suggestions keep the rule
-above: with the factor there too, FAUST improved and cat -> lion lost (docs/accuracy.md#suggested-curves).
+above: with the factor (or its square root) there too, cat -> lion lost (docs/accuracy.md#suggested-curves).
 
 Their images on the target are the maps' own (nearest neighbours in both spectral embeddings, as the default
 pointwise conversion): the person accepts them, or moves an end where the map is wrong. Distances are graph
