@@ -19,7 +19,12 @@ that of all the unassisted curves.
 
 ``--pairs faust_060_071`` runs the held-out pair (FAUST 060 -> 071), on which no rule is tuned.
 
+``--timing``: instead, the time of one suggestion (the round-trip drift and :func:`curvefm.pointwise.suggest_curve`,
+as ``GET /sessions/{id}/suggestion`` runs them) on FAUST 000 -> 011 subdivided once (27,554 vertices), from no
+curve (zero maps) and from the 10 unassisted curves' maps; the median of ``--repeats`` runs.
+
     python -m benchmarks.bench_suggestions [--curves 10] [--tolerance 0.03] [--pairs cat_lion faust_000_011]
+    python -m benchmarks.bench_suggestions --timing
 """
 
 from __future__ import annotations
@@ -27,10 +32,12 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import time
 from collections.abc import Callable
 
 import numpy as np
 
+from benchmarks.bench_scan import subdivided
 from benchmarks.common import bench_store, machine, shared_data
 from curvefm.evaluation import GroundTruth, ground_truth_curves, ground_truth_for, score
 from curvefm.fmap import DEFAULT_K, FunctionalMaps, RoundTripQuality
@@ -141,6 +148,24 @@ def run_pair(source: str, target: str, count: int, tolerance: float, store: Stor
     return entry
 
 
+def suggestion_seconds(curves: int, repeats: int, store: Store) -> dict[str, float]:
+    """Median seconds of one suggestion at 27,554 vertices, from no curve and from ``curves`` curves' maps."""
+    meshes = subdivided("tr_reg_000", 1), subdivided("tr_reg_011", 1)
+    identity = np.arange(meshes[0].n_vertices)
+    truth = GroundTruth(identity, identity, "identity", True)
+    result = match(*meshes, ground_truth_curves(*meshes, truth, curves), store=store)
+    no_maps = FunctionalMaps(np.zeros_like(result.fmaps.C_MN), np.zeros_like(result.fmaps.C_NM))
+    timings = {}
+    for name, fmaps, given in (("no_curve", no_maps, []), (f"{curves}_curves", result.fmaps, list(result.paths))):
+        seconds = []
+        for _ in range(repeats):
+            start = time.perf_counter()
+            suggestion(result.pair, fmaps, given)
+            seconds.append(time.perf_counter() - start)
+        timings[name] = round(float(np.median(seconds)), 4)
+    return {"vertices": meshes[0].n_vertices} | timings
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--curves", type=int, default=10, help="curves each person adds")
@@ -148,9 +173,15 @@ def main() -> None:
         "--tolerance", type=float, default=0.03, help="a suggested end within this of the truth is accepted"
     )
     parser.add_argument("--pairs", nargs="+", choices=sorted(PAIRS), default=SUITE)
+    parser.add_argument("--timing", action="store_true", help="time one suggestion at 27,554 vertices instead")
+    parser.add_argument("--repeats", type=int, default=5, help="suggestions timed (--timing)")
     args = parser.parse_args()
-    report = {"machine": machine(), "tolerance": args.tolerance, "pairs": {}}
+    report: dict = {"machine": machine(), "tolerance": args.tolerance, "pairs": {}}
     report["machine"]["load_avg_1min_before"] = round(os.getloadavg()[0], 2)
+    if args.timing:
+        timing = suggestion_seconds(args.curves, args.repeats, bench_store())
+        print(json.dumps({"machine": report["machine"], "suggestion_seconds": timing}, indent=2))
+        return
     for name in args.pairs:
         report["pairs"][name] = run_pair(*PAIRS[name], args.curves, args.tolerance, bench_store())
     print(json.dumps(report, indent=2))

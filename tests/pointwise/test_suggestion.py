@@ -5,9 +5,11 @@ import pytest
 from scipy.sparse.csgraph import dijkstra
 from support.shapes import stretched_ellipsoid_pair
 
-from curvefm.geometry import shortest_path
+from curvefm.evaluation import faust5k_truth
+from curvefm.fmap import RoundTripQuality
+from curvefm.geometry import load_mesh, shortest_path
 from curvefm.pointwise import fmap_from_pointwise, suggest_curve
-from curvefm.spectral import ShapePair
+from curvefm.spectral import ShapePair, laplace_beltrami_basis
 
 K = 20
 
@@ -58,3 +60,23 @@ def test_the_images_are_where_the_maps_send_the_ends(pair, maps):
     for source, target in zip(found.source, found.target, strict=True):
         apart = dijkstra(pair.mesh_N.edge_graph, indices=source)[target] / scale
         assert apart < 0.1
+
+
+def test_the_first_curve_does_not_join_mirror_twins_on_faust(shared_data):
+    """From no curve (a new session's zero maps) the suggested ends must not be each other's mirror images: FAUST's
+    two feet gave a curve the left-right mirror maps onto itself, and a flipped map. FAUST-5k's symmetric ground
+    truth gives each vertex's mirror partner."""
+    path = shared_data / "faust_5k_bcicp/tr_reg_000.off"
+    mesh = load_mesh(path)
+    pair = ShapePair(mesh, mesh, *(2 * [laplace_beltrami_basis(mesh, 60)]))
+    zero = np.zeros((60, 60))
+    drift = RoundTripQuality(mesh, pair.basis_M, mesh, pair.basis_N).measure(zero, zero).source
+    start, end = suggest_curve(pair, zero, zero, drift, np.zeros(0, dtype=np.int64)).source
+    truth, mirror = (faust5k_truth(path, path, mesh, mesh, symmetric=flag) for flag in (False, True))
+    assert np.array_equal(truth.ids_X, mirror.ids_X)
+    rows = truth.ids_X  # the rows of the ground truth nearest the ends: their mirror partners are known
+    twin_of_start = mirror.ids_Y[np.argmin(np.linalg.norm(mesh.vertices[rows] - mesh.vertices[start], axis=1))]
+    apart = dijkstra(mesh.edge_graph, indices=end)
+    scale = np.sqrt(mesh.area)
+    assert apart[twin_of_start] / scale > 0.5  # a foot and the other foot would be a few edges apart
+    assert apart[start] / scale > 0.5  # and the curve is long: it spans the shape

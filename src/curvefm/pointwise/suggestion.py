@@ -11,8 +11,14 @@ from the geodesic distance to what is already given, like a farthest-point sampl
 
 The square root was chosen by measurement on FAUST 000 -> 011 and cat -> lion against the drift alone and the
 distance alone (benchmarks/bench_suggestions.py; the figures and how far they fall short of issue 35's target are in
-docs/accuracy.md#suggested-curves). The first suggestion, made from no curve, can join two extremities that a
-left-right mirror swaps (FAUST's feet): a known weakness.
+docs/accuracy.md#suggested-curves).
+
+The first suggestion, made from no curve, must not join two points that a left-right mirror swaps (FAUST's two
+feet): such a curve is mapped onto itself by the mirror, its side tells nothing, and one curve gave a flipped map.
+Intrinsic signatures cannot tell mirror twins apart, which is what finds them: the first end also maximises
+``unlike(v)``, the distance of v's wave kernel signature from the start's (over its largest), 0 at the start's
+twin. It joins a foot to a hand on FAUST (one curve: 0.042 instead of 0.156). Later suggestions keep the rule
+above: with the factor (or its square root) there too, cat -> lion lost (docs/accuracy.md#suggested-curves).
 
 Their images on the target are the maps' own (nearest neighbours in both spectral embeddings, as the default
 pointwise conversion): the person accepts them, or moves an end where the map is wrong. Distances are graph
@@ -30,7 +36,8 @@ from scipy.sparse.csgraph import dijkstra
 
 from curvefm.geometry import Mesh
 from curvefm.pointwise.conversion import pointwise_from_both
-from curvefm.spectral import ShapePair
+from curvefm.spectral import Basis, ShapePair
+from curvefm.spectral.descriptors import wave_kernel_signature
 
 
 @dataclass(frozen=True)
@@ -49,10 +56,21 @@ def suggest_curve(
     mesh_M, weight = pair.mesh_M, np.sqrt(np.maximum(drift_M, 0.0))
     from_curves = _distances(mesh_M, curves_M) if len(curves_M) else np.ones(mesh_M.n_vertices)
     start = int(np.argmax(weight * from_curves))
-    end = int(np.argmax(weight * np.minimum(from_curves, _distances(mesh_M, np.array([start])))))
+    from_both = np.minimum(from_curves, _distances(mesh_M, np.array([start])))
+    end = int(np.argmax(weight * from_both * (1.0 if len(curves_M) else _unlike(pair.basis_M, start))))
     rows = np.array([start, end])
     images = pointwise_from_both(C_NM, C_MN, pair.basis_N, pair.basis_M, rows=rows)
     return SuggestedCurve(source=(start, end), target=(int(images[0]), int(images[1])))
+
+
+def _unlike(basis: Basis, vertex: int) -> np.ndarray:
+    """How far each vertex's wave kernel signature lies from ``vertex``'s, over the largest such distance (0 at
+    ``vertex`` and at its mirror twin, whose signature is the same). Each energy is divided by its mean over the
+    shape, so every band counts alike."""
+    signature = wave_kernel_signature(basis)
+    signature = signature / (basis.mass @ signature)
+    apart = np.linalg.norm(signature - signature[vertex], axis=1)
+    return apart / apart.max()
 
 
 def _distances(mesh: Mesh, sources: np.ndarray) -> np.ndarray:
