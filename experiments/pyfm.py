@@ -7,7 +7,9 @@ n = 1, 2, 5, 10. pyFM (PyPI ``pyfmaps``, extra ``bench``): WKS plus the landmark
 reference) and with ``w_dcomm=0`` (``obcs12``'s: descriptors and Laplacian commutativity only), then its
 nearest-neighbour conversion. Ours: the method plugins with their defaults, converted by nearest neighbours
 from the single map (as pyFM) and from both maps (the ``nearest-neighbor`` converter). Errors: the source ->
-target map, mean geodesic error / sqrt(area of the target).
+target map, mean geodesic error / sqrt(area of the target), never at a curve's end
+(:func:`curvefm.evaluation.truth_to_score`; before 2026-11-28 the ends were scored too). Both directions, issue 35's
+protocol, the default method and pyFM's ZoomOut: ``experiments/pyfm_both_directions.py``.
 
     pip install -e ".[bench]"; python -m experiments.pyfm [--curves 1,2,5,10] [--pairs faust,cat_lion]
 """
@@ -23,7 +25,7 @@ from pyFM.mesh import TriMesh
 
 from benchmarks.common import bench_store, machine, shared_data
 from curvefm import registry
-from curvefm.evaluation import evaluate_map, ground_truth_curves, ground_truth_for
+from curvefm.evaluation import evaluate_map, ground_truth_curves, ground_truth_for, truth_to_score
 from curvefm.fmap import Hints
 from curvefm.geometry import load_mesh
 from curvefm.matching import pair_with_basis_size
@@ -76,10 +78,11 @@ def main() -> None:
         truth = ground_truth_for(source, target, mesh_M, mesh_N)
         pair = pair_with_basis_size(store, (mesh_M, mesh_N), 120)
         for n in (int(c) for c in args.curves.split(",")):
-            hints = Hints.from_curves(ground_truth_curves(mesh_M, mesh_N, truth, n))
+            curves = ground_truth_curves(mesh_M, mesh_N, truth, n)
+            hints, scored = Hints.from_curves(curves), truth_to_score(truth, curves)
             for method, fit in PYFM_REFERENCE.items():
-                reference, seconds = pyfm_error(mesh_M, mesh_N, hints.landmarks, truth, fit)
-                ours = our_errors(pair, hints, truth, method)
+                reference, seconds = pyfm_error(mesh_M, mesh_N, hints.landmarks, scored, fit)
+                ours = our_errors(pair, hints, scored, method)
                 row = {
                     "pair": name,
                     "curves": n,
