@@ -304,8 +304,8 @@ async def remove_curve(
     """Remove a curve and update both maps; answers with the new map summary (and ``carried``, as for an add)."""
 
     def edit() -> CurveEdit:
-        session_for(services, user, session_id, "edit")
-        summary = services.sessions.remove_curve(session_id, curve_id, expected_revision(if_match))
+        read = session_for(services, user, session_id, "edit")
+        summary = services.sessions.remove_curve(session_id, curve_id, expected_revision(if_match), read=read)
         return CurveEdit(map=summary, carried=carry.answer(services, session_id))
 
     return await run_in_threadpool(edit)

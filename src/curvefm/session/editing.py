@@ -223,7 +223,7 @@ class SessionEditor:
         check_revision(record, expected_revision)
         self._check_room(record)
         traced = self._trace(record, spec)
-        with self.live.editing(session_id) as live:
+        with self.live.editing(session_id, record) as live:
             check_revision(live.record, expected_revision)
             self._check_room(live.record)
             curve = traced.model_copy(update={"id": curve_id or f"c{live.record.next_curve}"})
@@ -251,7 +251,7 @@ class SessionEditor:
         check_revision(record, expected_revision)
         _require_curve(record, curve_id)
         traced = self._trace(record, spec)
-        with self.live.editing(session_id) as live:
+        with self.live.editing(session_id, record) as live:
             check_revision(live.record, expected_revision)
             _require_curve(live.record, curve_id)
             curve = traced.model_copy(update={"id": curve_id})
@@ -263,8 +263,14 @@ class SessionEditor:
             return curve, _summary(live, update_ms)
 
     @_retried
-    def remove_curve(self, session_id: str, curve_id: str, expected_revision: int | None = None) -> MapSummary:
-        with self.live.editing(session_id) as live:
+    def remove_curve(
+        self,
+        session_id: str,
+        curve_id: str,
+        expected_revision: int | None = None,
+        read: SessionRecord | None = None,
+    ) -> MapSummary:
+        with self.live.editing(session_id, read) as live:
             check_revision(live.record, expected_revision)
             _require_curve(live.record, curve_id)
             started = time.perf_counter()
