@@ -165,9 +165,12 @@ class Load:
 
     async def sample_memory(self, start: float, end: float) -> None:
         while (now := time.perf_counter()) < end:
-            self.rss.append((now - start, sum(rss_mb(pid) for pid in self.servers)))
+            self.rss.append((now - start, self.servers_rss_mb()))
             await asyncio.sleep(min(RSS_EVERY_S, max(0.0, end - now)))
-        self.rss.append((time.perf_counter() - start, sum(rss_mb(pid) for pid in self.servers)))
+        self.rss.append((time.perf_counter() - start, self.servers_rss_mb()))
+
+    def servers_rss_mb(self) -> float:
+        return round(sum(rss_mb(pid) for pid in self.servers), 1)
 
 
 def cpu_s(pid: int) -> float:
