@@ -1,4 +1,4 @@
-"""Soak: many sessions editing curves at a steady rate against one API process, for minutes.
+"""Soak: many sessions editing curves at a steady rate against one API process (or several), for minutes.
 
 Starts ``python -m curvefm.service`` (embedded jobs) on a free port, uploads a real pair (FAUST tr_reg_000 ->
 tr_reg_001, 6890 vertices, whose vertex ids correspond; ``--pair cat``: TOSCA cat0 -> cat1, 27894 vertices),
@@ -18,19 +18,26 @@ The client is aiohttp, not the project's httpx: on a two-core machine the load g
 cores, and httpx's asyncio client spent 2 ms of CPU a request when the server kept up and 6 ms when it fell
 behind (more connections waiting), which pushed the server further behind; aiohttp spends about 0.65 ms.
 
-``--texture``: after each edit the session also fetches the texture carried by the new map, as the web UI does
-(``GET /sessions/{id}/transfer``): the map is solved once per revision, on that first read, so this is the load of
-people clicking in the UI; without it, the load of scripts editing curves through the API. The latencies are then
-those of the edit and its texture together.
+``--processes 2``: two API processes on the one data directory (and database), as docker-compose runs them behind
+its proxy; ``--spread request`` (default) sends each edit to the next process in turn, as the proxy's round robin
+does, ``--spread session`` keeps each session on one process. The CPU per edit is then the processes' together, and
+the memory their sum.
+
+``--carry``: each edit asks for the texture carried through its new map in its answer (``?carry=uv&resolution=
+display``), as the web UI's edits do now: the map is solved in the edit. ``--texture``: after each edit the session
+also fetches that texture (``GET /sessions/{id}/transfer``), as the web UI did before edits carried it: the map is
+solved once per revision, on that first read. Without either, the load of scripts editing curves through the API.
+The latencies are then those of the edit and its texture together.
 
 Usage: ``python -m benchmarks.bench_soak [--minutes 5] [--sessions 50] [--rate 2] [--pair faust|cat] [--texture]
-[--data DIR] [--log FILE]``
+[--carry] [--processes 1] [--spread request|session] [--data DIR] [--log FILE]``
 """
 
 from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import json
 import os
 import platform
@@ -87,8 +94,8 @@ async def prepare(client: aiohttp.ClientSession, pair: str, k: int) -> tuple[lis
 class Session:
     """One editing session: its id, its curves (oldest first) and the random endpoints it draws."""
 
-    def __init__(self, session_id: str, n_vertices: int, seed: int):
-        self.id, self.n_vertices = session_id, n_vertices
+    def __init__(self, session_id: str, n_vertices: int, seed: int, home: int = 0):
+        self.id, self.n_vertices, self.home = session_id, n_vertices, home  # home: its process (--spread session)
         self.curves: list[str] = []
         self.rng = np.random.default_rng(seed)
 
@@ -98,24 +105,31 @@ class Session:
 
 
 class Load:
-    """The edits of all sessions: latencies by kind, errors by status, the server's memory over time."""
+    """The edits of all sessions (each through ``clients[i]``, the i-th process's: the session's own with
+    ``sticky``, else the next in turn): latencies by kind, errors by status, the servers' memory over time."""
 
-    def __init__(self, server_pid: int, max_curves: int, texture: bool):
-        self.server_pid, self.max_curves, self.texture = server_pid, max_curves, texture
+    def __init__(self, servers: list[int], clients: list[aiohttp.ClientSession], args):
+        self.servers, self.clients, self.sticky = servers, clients, args.spread == "session"
+        self.max_curves, self.texture = args.curves, args.texture
+        self.params = {"carry": "uv", "resolution": "display"} if args.carry else {}
+        self.sent = 0
         self.latencies: dict[str, list[float]] = {"add": [], "remove": []}
         self.from_schedule: list[float] = []
         self.errors: Counter = Counter()
         self.rss: list[tuple[float, float]] = []
 
-    async def edit(self, client: aiohttp.ClientSession, session: Session, scheduled: float | None = None) -> None:
+    async def edit(self, session: Session, scheduled: float | None = None) -> None:
         kind = "add" if len(session.curves) < self.max_curves else "remove"
         curves = f"/sessions/{session.id}/curves"
+        client = self.clients[(session.home if self.sticky else self.sent) % len(self.clients)]
+        self.sent += 1
         started = time.perf_counter()
         try:
             if kind == "add":
-                status, body = await self.request(client, "POST", curves, json=session.new_curve())
+                status, body = await self.request(client, "POST", curves, json=session.new_curve(), params=self.params)
             else:
-                status, body = await self.request(client, "DELETE", f"{curves}/{session.curves[0]}")
+                remove = f"{curves}/{session.curves[0]}"
+                status, body = await self.request(client, "DELETE", remove, params=self.params)
             if self.texture and status < 300:
                 transfer = f"/sessions/{session.id}/transfer"
                 texture, _ = await self.request(client, "GET", transfer, params={"function": "uv"})
@@ -140,22 +154,23 @@ class Load:
         async with client.request(method, url, **kwargs) as response:
             return response.status, await response.read()
 
-    async def session_loop(
-        self, client: aiohttp.ClientSession, session: Session, start: float, end: float, period: float
-    ) -> None:
+    async def session_loop(self, session: Session, start: float, end: float, period: float) -> None:
         next_at = start + period * session.rng.random()  # sessions out of step, as people are
         while next_at < end:
             await asyncio.sleep(max(0.0, next_at - time.perf_counter()))
             if time.perf_counter() >= end:
                 break
-            await self.edit(client, session, scheduled=next_at)
+            await self.edit(session, scheduled=next_at)
             next_at += period
 
     async def sample_memory(self, start: float, end: float) -> None:
         while (now := time.perf_counter()) < end:
-            self.rss.append((now - start, rss_mb(self.server_pid)))
+            self.rss.append((now - start, self.servers_rss_mb()))
             await asyncio.sleep(min(RSS_EVERY_S, max(0.0, end - now)))
-        self.rss.append((time.perf_counter() - start, rss_mb(self.server_pid)))
+        self.rss.append((time.perf_counter() - start, self.servers_rss_mb()))
+
+    def servers_rss_mb(self) -> float:
+        return round(sum(rss_mb(pid) for pid in self.servers), 1)
 
 
 def cpu_s(pid: int) -> float:
@@ -171,29 +186,39 @@ def percentiles(ms: list[float]) -> dict:
     return {"count": len(ms), "p50_ms": round(p50, 1), "p95_ms": round(p95, 1), "p99_ms": round(p99, 1)}
 
 
-async def soak(url: str, headers: dict[str, str], server_pid: int, args) -> dict:
-    connector = aiohttp.TCPConnector(limit=args.sessions)
+async def soak(servers: list[tuple[int, str]], headers: dict[str, str], args) -> dict:
+    """The soak against ``servers`` (pid, url) on one data directory: prepared through the first."""
+    pids = [pid for pid, _ in servers]
     timeout = aiohttp.ClientTimeout(total=60)
-    async with aiohttp.ClientSession(url, headers=headers, timeout=timeout, connector=connector) as client:
+    async with contextlib.AsyncExitStack() as stack:
+        clients = [
+            await stack.enter_async_context(
+                aiohttp.ClientSession(
+                    url, headers=headers, timeout=timeout, connector=aiohttp.TCPConnector(limit=args.sessions)
+                )
+            )
+            for _, url in servers
+        ]
         started = time.perf_counter()
-        ids, n_vertices = await prepare(client, args.pair, args.k)
+        ids, n_vertices = await prepare(clients[0], args.pair, args.k)
         prepare_s = time.perf_counter() - started
         sessions = []
         for index in range(args.sessions):
             body = {"source": ids[0], "target": ids[1], "k": args.k, "name": f"soak-{index}"}
-            record = await call(client, "POST", "/sessions", json=body)
-            sessions.append(Session(record["id"], n_vertices, seed=args.seed + index))
-        load = Load(server_pid, args.curves, args.texture)
-        for session in sessions:  # the first edit builds the live session: not measured
-            await load.edit(client, session)
+            record = await call(clients[0], "POST", "/sessions", json=body)
+            sessions.append(Session(record["id"], n_vertices, seed=args.seed + index, home=index % len(clients)))
+        load = Load(pids, clients, args)
+        for session in sessions:  # the first edit (on each process) builds the live session: not measured
+            for _ in range(1 if load.sticky else len(clients)):
+                await load.edit(session)
         load.latencies, load.from_schedule = {"add": [], "remove": []}, []
         start = time.perf_counter()
-        cpu_start = (cpu_s(server_pid), time.process_time())
+        cpu_start = (sum(map(cpu_s, pids)), time.process_time())
         end = start + 60 * args.minutes
-        loops = [load.session_loop(client, s, start, end, 1 / args.rate) for s in sessions]
+        loops = [load.session_loop(s, start, end, 1 / args.rate) for s in sessions]
         await asyncio.gather(load.sample_memory(start, end), *loops)
         elapsed = time.perf_counter() - start
-        cpu = (cpu_s(server_pid) - cpu_start[0], time.process_time() - cpu_start[1])
+        cpu = (sum(map(cpu_s, pids)) - cpu_start[0], time.process_time() - cpu_start[1])
     edits = load.latencies["add"] + load.latencies["remove"]
     sent = len(edits) + sum(load.errors.values())
     middle = min(load.rss, key=lambda sample: abs(sample[0] - elapsed / 2))
@@ -232,7 +257,12 @@ def main() -> None:
     parser.add_argument("--pair", choices=sorted(PAIRS), default="faust")
     parser.add_argument("--k", type=int, default=120)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--texture", action="store_true", help="fetch the carried texture after each edit, as the UI")
+    parser.add_argument("--texture", action="store_true", help="fetch the carried texture after each edit")
+    parser.add_argument("--carry", action="store_true", help="each edit's answer carries the texture, as the UI's")
+    parser.add_argument("--processes", type=int, default=1, help="API processes on the one data directory")
+    parser.add_argument(
+        "--spread", choices=("request", "session"), default="request", help="next process per edit, or per session"
+    )
     parser.add_argument("--data", type=Path, help="data directory (kept; reuses bases); default: a temporary one")
     parser.add_argument("--log", type=Path, help="where the server's output goes (default: nowhere)")
     parser.add_argument("--engine", choices=("sqlite", "postgresql"), default="sqlite", help="the records' database")
@@ -244,15 +274,21 @@ def main() -> None:
     ):
         if args.engine == "postgresql":
             os.environ["CURVEFM_DATABASE_URL"] = database_url  # the bench user's token and the server alike
-        server, url, headers = start_server(args.data or Path(scratch), log=args.log)
+        data = args.data or Path(scratch)
+        started = [start_server(data, log=args.log) for _ in range(args.processes)]
+        headers = started[-1][2]  # each start rotates the bench user's token: the last one holds
         try:
-            result = asyncio.run(soak(url, headers, server.pid, args))
+            result = asyncio.run(soak([(server.pid, url) for server, url, _ in started], headers, args))
         finally:
-            server.kill()
-            server.wait()
+            for server, _, _ in started:
+                server.kill()
+                server.wait()
     folder, *names = PAIRS[args.pair]
     report = {
-        "benchmark": "soak: curve edits from many sessions against one API process",
+        "benchmark": "soak: curve edits from many sessions against API processes on one data directory",
+        "processes": args.processes,
+        "spread": args.spread,
+        "carry_in_edit_answers": args.carry,
         "shapes": [f"{folder}/{name}" for name in names],
         "k": args.k,
         "sessions": args.sessions,

@@ -27,6 +27,7 @@ from sqlalchemy import (
     Connection,
     Select,
     and_,
+    bindparam,
     delete,
     exists,
     false,
@@ -114,6 +115,15 @@ ReviewState = Literal["open", "submitted", "changes_requested", "accepted"]
 """Where a member stands in review (``open``: never submitted; it holds no row)."""
 LOCKED_STATES = ("submitted", "accepted")
 """The review states in which a member's curves may not change (a reviewer sends it back to reopen it)."""
+_LOCKED_MEMBER = (
+    select(m.Member.collection_id, m.Member.id, m.MemberReview.state)
+    .join(
+        m.MemberReview,
+        (m.MemberReview.collection_id == m.Member.collection_id) & (m.MemberReview.member_id == m.Member.id),
+    )
+    .where(m.Member.session_id == bindparam("session_id"), m.MemberReview.state.in_(LOCKED_STATES))
+)
+"""Asked before every curve edit: built once (SQLAlchemy's cache key of a new statement costs more than the query)."""
 
 
 @dataclass(frozen=True)
@@ -453,13 +463,8 @@ class Collections:
     def locked_member(self, session_id: str) -> tuple[str, str, str] | None:
         """``(collection id, member id, review state)`` when the session is a member's whose curves may not change
         now (:data:`LOCKED_STATES`), else None."""
-        r, member = m.MemberReview, m.Member
         with self.db.read() as conn:
-            row = conn.execute(
-                select(member.collection_id, member.id, r.state)
-                .join(r, (r.collection_id == member.collection_id) & (r.member_id == member.id))
-                .where(member.session_id == session_id, r.state.in_(LOCKED_STATES))
-            ).first()
+            row = conn.execute(_LOCKED_MEMBER, {"session_id": session_id}).first()
         return None if row is None else (row.collection_id, row.id, row.state)
 
     # -- further annotations (double annotation) -------------------------------------------------------------

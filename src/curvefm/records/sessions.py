@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from functools import partial
 from typing import Any
 
-from sqlalchemy import ColumnElement, Connection, ScalarSelect, delete, func, insert, or_, select, update
+from sqlalchemy import ColumnElement, Connection, ScalarSelect, bindparam, delete, func, insert, or_, select, update
 from sqlalchemy.exc import IntegrityError
 
 from curvefm.errors import Conflict, InvalidInput, LimitExceeded, NotFound, StaleRevision, shown
@@ -265,11 +265,8 @@ class Sessions:
         written = record.model_copy(update={"revision": record.revision + 1, "updated_at": now()})
         with self.db.joined(conn) as tx:
             values = {name: getattr(record, name) for name in SCALARS}
-            done = tx.execute(
-                update(m.Session)
-                .where(m.Session.id == record.id, m.Session.revision == record.revision)
-                .values(revision=written.revision, updated_at=written.updated_at, bytes=size, **values)
-            )
+            changes = {"revision": written.revision, "updated_at": written.updated_at, "bytes": size, **values}
+            done = tx.execute(_UPDATE_FROM, {"at_id": record.id, "at_revision": record.revision, **changes})
             if done.rowcount != 1:
                 stored = self._revision(tx, record.id)
                 if stored is None:
@@ -339,25 +336,16 @@ class Sessions:
 
     @staticmethod
     def _revision(conn: Connection, session_id: str) -> int | None:
-        return conn.execute(select(m.Session.revision).where(m.Session.id == session_id)).scalar()
+        return conn.execute(_REVISION, {"session_id": session_id}).scalar()
 
     @staticmethod
     def _read(conn: Connection, session_id: str) -> SessionRecord:
         if not well_formed(session_id):
             raise UnknownSession(session_id)
-        columns = [c for c in m.Session.__table__.c if c.name not in NOT_READ]
-        row = conn.execute(
-            select(*columns, owner_name())
-            .outerjoin(m.User, m.User.id == m.Session.owner_id)
-            .where(m.Session.id == session_id)
-        ).first()
+        row = conn.execute(_ROW, {"session_id": session_id}).first()
         if row is None:
             raise UnknownSession(session_id)
-        curves = conn.execute(
-            select(m.Curve.id, m.Curve.spec, m.Curve.tracer, m.Curve.path_source, m.Curve.path_target)
-            .where(m.Curve.session_id == session_id)
-            .order_by(m.Curve.position)
-        ).all()
+        curves = conn.execute(_CURVES, {"session_id": session_id}).all()
         return SessionRecord.model_validate(
             {
                 **row._asdict(),
@@ -373,6 +361,34 @@ class Sessions:
                 ],
             }
         )
+
+
+# The statements of every edit, built once: SQLAlchemy keys its cache of compiled statements by a traversal of the
+# statement, which costs a new statement object more than running it does (a session's read 2-3x).
+_ROW = (
+    select(*(c for c in m.Session.__table__.c if c.name not in NOT_READ), owner_name())
+    .outerjoin(m.User, m.User.id == m.Session.owner_id)
+    .where(m.Session.id == bindparam("session_id"))
+)
+_CURVES = (
+    select(m.Curve.id, m.Curve.spec, m.Curve.tracer, m.Curve.path_source, m.Curve.path_target)
+    .where(m.Curve.session_id == bindparam("session_id"))
+    .order_by(m.Curve.position)
+)
+_REVISION = select(m.Session.revision).where(m.Session.id == bindparam("session_id"))
+_UPDATE_FROM = update(m.Session).where(
+    m.Session.id == bindparam("at_id"), m.Session.revision == bindparam("at_revision")
+)
+"""The session's row if still at the revision read (its new values are the execution's other parameters)."""
+_DELETE_CURVES = delete(m.Curve).where(
+    m.Curve.session_id == bindparam("session_id"), m.Curve.id.in_(bindparam("ids", expanding=True))
+)
+_MOVE_CURVE = (
+    update(m.Curve)
+    .where(m.Curve.session_id == bindparam("in_session"), m.Curve.id == bindparam("curve"))
+    .values(position=bindparam("to"))
+)
+_INSERT_CURVES = insert(m.Curve)
 
 
 def sessions_of(store: Store, url: str | None = None, **options: Any) -> Sessions:
@@ -413,7 +429,7 @@ def _curve_row(session_id: str, position: int, curve: CurveRecord) -> dict[str, 
 
 def _insert_curves(conn: Connection, session_id: str, curves: list[tuple[int, CurveRecord]]) -> None:
     if curves:
-        conn.execute(insert(m.Curve), [_curve_row(session_id, position, curve) for position, curve in curves])
+        conn.execute(_INSERT_CURVES, [_curve_row(session_id, position, curve) for position, curve in curves])
 
 
 def _write_changed_curves(
@@ -423,8 +439,6 @@ def _write_changed_curves(
     old = {curve.id: (position, curve) for position, curve in enumerate(before)}
     new_ids = {curve.id for curve in after}
     gone = [curve_id for curve_id in old if curve_id not in new_ids]
-    if gone:
-        conn.execute(delete(m.Curve).where(m.Curve.session_id == session_id, m.Curve.id.in_(gone)))
     added, moved = [], []
     for position, curve in enumerate(after):
         if curve.id not in old:
@@ -432,14 +446,14 @@ def _write_changed_curves(
             continue
         old_position, old_curve = old[curve.id]
         if curve is not old_curve and curve != old_curve:
-            conn.execute(delete(m.Curve).where(m.Curve.session_id == session_id, m.Curve.id == curve.id))
+            gone.append(curve.id)
             added.append((position, curve))
         elif position != old_position:
-            moved.append((curve.id, position))
-    for curve_id, position in moved:
-        conn.execute(
-            update(m.Curve).where(m.Curve.session_id == session_id, m.Curve.id == curve_id).values(position=position)
-        )
+            moved.append({"in_session": session_id, "curve": curve.id, "to": position})
+    if gone:
+        conn.execute(_DELETE_CURVES, {"session_id": session_id, "ids": gone})
+    if moved:
+        conn.execute(_MOVE_CURVE, moved)
     _insert_curves(conn, session_id, added)
 
 

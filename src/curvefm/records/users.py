@@ -24,7 +24,7 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-from sqlalchemy import Connection, Label, Row, Select, func, insert, select, update
+from sqlalchemy import Connection, Label, Row, Select, bindparam, func, insert, select, update
 from sqlalchemy.exc import IntegrityError
 
 from curvefm.errors import Conflict, Forbidden, InvalidInput, NotFound
@@ -66,7 +66,7 @@ class Users:
             return None
         digest = token_hash(token)
         with self.db.read() as conn:
-            row = conn.execute(_select().where(m.User.token_sha256 == digest)).first()
+            row = conn.execute(_BY_TOKEN, {"digest": digest}).first()
         if row is None or not hmac.compare_digest(row.token_sha256 or "", digest):
             return None
         return _user(row)
@@ -277,6 +277,11 @@ def _new_user(name: str, admin: bool, token: str) -> dict[str, Any]:
 
 def _select() -> Select[int, str, bool, float, str | None]:
     return select(m.User.id, m.User.name, m.User.admin, m.User.created_at, m.User.token_sha256)
+
+
+_BY_TOKEN = _select().where(m.User.token_sha256 == bindparam("digest"))
+"""Every request's lookup, built once: SQLAlchemy keys its compiled-statement cache by a traversal of the
+statement, which costs a new statement object 3x what the query does (about 200 us of 270)."""
 
 
 def _user(row: Row[int, str, bool, float, str | None]) -> User:

@@ -215,8 +215,8 @@ Carry = Annotated[
 class CarryQuery:
     """An edit's ``?carry=`` and ``&resolution=``: what its answer carries besides the curve and the map summary."""
 
-    carry: Carry = None
-    resolution: Annotated[Literal["full", "display"], RESOLUTION] = "full"
+    carry: CarriedKind | None
+    resolution: Literal["full", "display"]
 
     def answer(self, services: Services, session_id: str) -> CarriedFunction | None:
         if self.carry is None:
@@ -225,7 +225,14 @@ class CarryQuery:
         return carried(self.carry, transferred)
 
 
-CarryDep = Annotated[CarryQuery, Depends()]
+async def carry_query(
+    carry: Carry = None, resolution: Annotated[Literal["full", "display"], RESOLUTION] = "full"
+) -> CarryQuery:
+    # async: the class itself as the dependency would be called in a worker thread, a second hand-off per edit
+    return CarryQuery(carry, resolution)
+
+
+CarryDep = Annotated[CarryQuery, Depends(carry_query)]
 
 
 # The curve edits are the hot path: async routes doing their blocking work (locks, tracing, the durable write) in
@@ -256,8 +263,9 @@ async def add_curve(
     the function carried through the new map (``carried``, at ``resolution``), as the web UI asks."""
 
     def edit() -> CurveEdit:
-        session_for(services, user, session_id, "edit")
-        curve, summary = services.sessions.add_curve(session_id, body, curve_id, position, expected_revision(if_match))
+        read = session_for(services, user, session_id, "edit")
+        expected = expected_revision(if_match)
+        curve, summary = services.sessions.add_curve(session_id, body, curve_id, position, expected, read=read)
         return CurveEdit(curve=curve, map=summary, carried=carry.answer(services, session_id))
 
     return await run_in_threadpool(edit)
@@ -276,8 +284,9 @@ async def replace_curve(
     """Trace the curve pair again from a new spec; answers as ``POST /sessions/{id}/curves`` does."""
 
     def edit() -> CurveEdit:
-        session_for(services, user, session_id, "edit")
-        curve, summary = services.sessions.replace_curve(session_id, curve_id, body, expected_revision(if_match))
+        read = session_for(services, user, session_id, "edit")
+        expected = expected_revision(if_match)
+        curve, summary = services.sessions.replace_curve(session_id, curve_id, body, expected, read=read)
         return CurveEdit(curve=curve, map=summary, carried=carry.answer(services, session_id))
 
     return await run_in_threadpool(edit)
@@ -295,8 +304,8 @@ async def remove_curve(
     """Remove a curve and update both maps; answers with the new map summary (and ``carried``, as for an add)."""
 
     def edit() -> CurveEdit:
-        session_for(services, user, session_id, "edit")
-        summary = services.sessions.remove_curve(session_id, curve_id, expected_revision(if_match))
+        read = session_for(services, user, session_id, "edit")
+        summary = services.sessions.remove_curve(session_id, curve_id, expected_revision(if_match), read=read)
         return CurveEdit(map=summary, carried=carry.answer(services, session_id))
 
     return await run_in_threadpool(edit)

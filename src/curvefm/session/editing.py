@@ -152,6 +152,7 @@ def _retried(edit: Callable[P, T]) -> Callable[P, T]:
             except StaleRevision:
                 if attempt + 1 == STALE_RETRIES:
                     raise
+                kwargs.pop("read", None)  # the caller's record is older than the other writer's: read it again
                 time.sleep(random.uniform(0, 0.005 * (attempt + 1)))  # two writers retrying apart
         raise AssertionError("unreachable")
 
@@ -211,16 +212,18 @@ class SessionEditor:
         curve_id: str | None = None,
         position: int | None = None,
         expected_revision: int | None = None,
+        read: SessionRecord | None = None,
     ) -> tuple[CurveRecord, MapSummary]:
         """Add a curve under the next id, at the end of the list. Undoing a delete gives the deleted curve's
         ``curve_id`` back (only an id the session handed out and no curve holds now) and its ``position`` in the
         list (clamped to the list). Each edit given the ``expected_revision`` it was based on is refused
-        (:class:`RevisionMismatch`) when the session is at another."""
-        record = self.record(session_id)
+        (:class:`RevisionMismatch`) when the session is at another. ``read``: the record as the caller has just
+        read it (to check who asks), saving this edit another read."""
+        record = read or self.record(session_id)
         check_revision(record, expected_revision)
         self._check_room(record)
         traced = self._trace(record, spec)
-        with self.live.editing(session_id) as live:
+        with self.live.editing(session_id, record) as live:
             check_revision(live.record, expected_revision)
             self._check_room(live.record)
             curve = traced.model_copy(update={"id": curve_id or f"c{live.record.next_curve}"})
@@ -237,13 +240,18 @@ class SessionEditor:
 
     @_retried
     def replace_curve(
-        self, session_id: str, curve_id: str, spec: CurveSpec, expected_revision: int | None = None
+        self,
+        session_id: str,
+        curve_id: str,
+        spec: CurveSpec,
+        expected_revision: int | None = None,
+        read: SessionRecord | None = None,
     ) -> tuple[CurveRecord, MapSummary]:
-        record = self.record(session_id)
+        record = read or self.record(session_id)
         check_revision(record, expected_revision)
         _require_curve(record, curve_id)
         traced = self._trace(record, spec)
-        with self.live.editing(session_id) as live:
+        with self.live.editing(session_id, record) as live:
             check_revision(live.record, expected_revision)
             _require_curve(live.record, curve_id)
             curve = traced.model_copy(update={"id": curve_id})
@@ -255,8 +263,14 @@ class SessionEditor:
             return curve, _summary(live, update_ms)
 
     @_retried
-    def remove_curve(self, session_id: str, curve_id: str, expected_revision: int | None = None) -> MapSummary:
-        with self.live.editing(session_id) as live:
+    def remove_curve(
+        self,
+        session_id: str,
+        curve_id: str,
+        expected_revision: int | None = None,
+        read: SessionRecord | None = None,
+    ) -> MapSummary:
+        with self.live.editing(session_id, read) as live:
             check_revision(live.record, expected_revision)
             _require_curve(live.record, curve_id)
             started = time.perf_counter()

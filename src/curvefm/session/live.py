@@ -134,12 +134,13 @@ class LiveSessions:
             lock.release()
 
     @contextmanager
-    def editing(self, session_id: str) -> Iterator[LiveSession]:
+    def editing(self, session_id: str, read: SessionRecord | None = None) -> Iterator[LiveSession]:
         """The live session, up to date with its record, held for an edit against this process's other threads
         (the session's lock) until the edit is written; other processes' edits are caught by the write's revision
-        check."""
+        check. ``read``: the record as the caller read it for this edit, which the live session is brought up to
+        instead of reading it again (a later write by another process fails the edit's write, which is retried)."""
         with self.locked(session_id):
-            yield self._current(session_id)  # (an unknown or deleted session raises there)
+            yield self._current(session_id, read)  # (an unknown or deleted session raises there)
 
     @contextmanager
     def using(self, session_id: str) -> Iterator[LiveSession]:
@@ -209,11 +210,14 @@ class LiveSessions:
         self._executor.shutdown()
         self._prior_executor.shutdown(cancel_futures=True)
 
-    def _current(self, session_id: str) -> LiveSession:
-        """The live session as of its record on disk: built when not cached, brought up to date when another
-        process has written a later revision. The caller holds the session's lock."""
-        live = self._sessions.get(session_id, lambda: self._build(self.records.read(session_id)))
-        record = self.records.read_changed(session_id, live.record.revision)
+    def _current(self, session_id: str, read: SessionRecord | None = None) -> LiveSession:
+        """The live session as of its record on disk (or as ``read`` from it): built when not cached, brought up
+        to date when another process has written a later revision. The caller holds the session's lock."""
+        live = self._sessions.get(session_id, lambda: self._build(read or self.records.read(session_id)))
+        if read is None:
+            record = self.records.read_changed(session_id, live.record.revision)
+        else:  # a live record newer than the caller's read is this process's own later edit
+            record = read if read.revision > live.record.revision else None
         if record is not None:
             live.solver.sync({c.id: (*internal_paths(live.pair, c), c.spec.weight) for c in record.curves})
             live.record = record
