@@ -15,9 +15,9 @@ Python-heavy parts more than the native ones, so its total exceeds the unprofile
 Sizes: ``28k`` TOSCA cat0 (27,894 vertices), ``110k`` / ``440k`` FAUST tr_reg_000 subdivided twice / three
 times (``trimesh.remesh.subdivide``), written as binary PLY to a temporary folder at run time.
 
-Usage: ``python -m benchmarks.bench_basis_command [--sizes 28k,110k] [--repeats 3] [--k 120] [--no-breakdown]``;
-prints JSON. Data: $CURVEFM_SHARED_DATA or ../shared/data next to the repository. The 440k plain call peaks at
-about 3 GB.
+Usage: ``python -m benchmarks.bench_basis_command [--sizes 28k,110k,440k] [--repeats 3] [--k 120] [--params JSON]
+[--no-breakdown]``; prints JSON. Data: $CURVEFM_SHARED_DATA or ../shared/data next to the repository. The 440k
+plain call peaks at about 3 GB.
 """
 
 from __future__ import annotations
@@ -83,24 +83,25 @@ def write_mesh(size: str, folder: Path) -> Path:
 
 def run_process(command: list[str], env: dict[str, str]) -> dict:
     """Wall seconds and peak resident memory of one child process (its stdout/stderr discarded)."""
-    start = time.perf_counter()
-    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
-    _, status, usage = os.wait4(process.pid, 0)
-    seconds = time.perf_counter() - start
-    stderr = process.stderr.read().decode(errors="replace") if process.stderr else ""
-    if os.waitstatus_to_exitcode(status) != 0:
-        sys.exit(f"{' '.join(command)} failed:\n{stderr[-3000:]}")
+    with tempfile.TemporaryFile() as stderr:  # a file, not a pipe: a full pipe would stop the child
+        start = time.perf_counter()
+        process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=stderr, env=env)
+        _, status, usage = os.wait4(process.pid, 0)
+        seconds = time.perf_counter() - start
+        if os.waitstatus_to_exitcode(status) != 0:
+            stderr.seek(0)
+            sys.exit(f"{' '.join(command)} failed:\n{stderr.read().decode(errors='replace')[-3000:]}")
     return {"s": round(seconds, 2), "peak_gb": round(usage.ru_maxrss / 2**20, 2)}
 
 
-def command_line(path: Path, k: int, data: str) -> list[str]:
-    return [sys.executable, "-m", "curvefm.cli", "basis", str(path), "--k", str(k), "--data", data]
+def command_line(path: Path, k: int, data: str, params: str) -> list[str]:
+    return [sys.executable, "-m", "curvefm.cli", "basis", str(path), "--k", str(k), "--data", data, "--params", params]
 
 
-def bench_size(path: Path, k: int, repeats: int, env: dict[str, str], work: Path) -> dict:
+def bench_size(path: Path, k: int, repeats: int, params: str, env: dict[str, str], work: Path) -> dict:
     runs = []
     for run in range(repeats):
-        ours = run_process(command_line(path, k, str(work / f"data-{path.stem}-{run}")), env)
+        ours = run_process(command_line(path, k, str(work / f"data-{path.stem}-{run}"), params), env)
         plain_command = [sys.executable, "-m", "benchmarks.bench_basis_command", "--plain", str(path), "--k", str(k)]
         plain = run_process(plain_command, env)
         runs.append({"command": ours, "plain": plain, "ratio": round(ours["s"] / plain["s"], 3)})
@@ -108,10 +109,10 @@ def bench_size(path: Path, k: int, repeats: int, env: dict[str, str], work: Path
     return {"runs": runs, "ratio_min_median_max": [ratios[0], ratios[len(ratios) // 2], ratios[-1]]}
 
 
-def breakdown(path: Path, k: int, env: dict[str, str], work: Path) -> dict:
+def breakdown(path: Path, k: int, params: str, env: dict[str, str], work: Path) -> dict:
     profile = work / f"{path.stem}.prof"
     data = str(work / f"data-{path.stem}-profiled")
-    command = [sys.executable, "-m", "cProfile", "-o", str(profile), *command_line(path, k, data)[1:]]
+    command = [sys.executable, "-m", "cProfile", "-o", str(profile), *command_line(path, k, data, params)[1:]]
     start = time.perf_counter()
     subprocess.run(command, check=True, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     total = time.perf_counter() - start
@@ -131,6 +132,7 @@ def main() -> None:
     parser.add_argument("--sizes", default="28k,110k")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--k", type=int, default=120)
+    parser.add_argument("--params", default="{}", help="the command's --params (JSON), e.g. a method")
     parser.add_argument("--no-breakdown", action="store_true")
     parser.add_argument("--plain", help=argparse.SUPPRESS)  # the child process of (b)
     args = parser.parse_args()
@@ -143,14 +145,15 @@ def main() -> None:
     env.setdefault("PYTHONPATH", str(Path(__file__).resolve().parents[1] / "src"))
     for variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # as the command sets them
         env.setdefault(variable, "1")
-    report: dict = {"machine": machine(), "load_avg_1min_before": round(os.getloadavg()[0], 2), "sizes": {}}
+    report: dict = {"machine": machine(), "params": args.params, "load_avg_1min_before": round(os.getloadavg()[0], 2)}
+    report["sizes"] = {}
     with tempfile.TemporaryDirectory(prefix="bench-basis-") as tmp:
         work = Path(tmp)
         for size in args.sizes.split(","):
             path = write_mesh(size, work)
-            result = bench_size(path, args.k, args.repeats, env, work)
+            result = bench_size(path, args.k, args.repeats, args.params, env, work)
             if not args.no_breakdown:
-                result["breakdown_s"] = breakdown(path, args.k, env, work)
+                result["breakdown_s"] = breakdown(path, args.k, args.params, env, work)
             report["sizes"][size] = result
     report["load_avg_1min_after"] = round(os.getloadavg()[0], 2)
     print(json.dumps(report, indent=2))
