@@ -5,7 +5,6 @@ paper's conjugate gradients (its Algorithm 2) and L-BFGS.
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import minimize
 
 
 def conjugate_gradient_solve(
@@ -67,6 +66,8 @@ def quasi_newton_solve(
 
     start = np.zeros(B.size) if C0 is None else C0.ravel()
     gtol = 2 * tol * np.linalg.norm(B) / np.sqrt(B.size)
+    from scipy.optimize import minimize  # about 0.4 s to import: not for every command that imports curvefm.fmap
+
     result = minimize(
         energy,
         start,

@@ -5,7 +5,7 @@ of big meshes and texture coordinates.
 """
 
 from curvefm.geometry.curve_side import curve_side
-from curvefm.geometry.decimation import closest_point_weights, decimate
+from curvefm.geometry.decimation import closest_point_weights, decimate, fast_decimate
 from curvefm.geometry.display import DisplayMesh, display_mesh
 from curvefm.geometry.geodesics import (
     checked_ids,
@@ -43,6 +43,7 @@ __all__ = [
     "curve_side",
     "cotangent_laplacian",
     "decimate",
+    "fast_decimate",
     "display_mesh",
     "cylindrical_uv",
     "edge_weight_graph",
