@@ -58,10 +58,10 @@ PRESENCE_GRACE_S = 5.0
 CHANGES = frozenset({"curve-added", "curve-removed", "curve-replaced", "renamed", "sharing", "changed"})
 """The kinds whose ``revision`` is the session's new one."""
 ACCESS_CHANGES = frozenset({"sharing", "changed"})
+"""The kinds after which a stream checks that its user may still read the session."""
 CommentMark = tuple[Any, ...]
 """What changes with any change of a member's review comments (:meth:`Viewers.comment_marks`)."""
 NO_COMMENTS: CommentMark = (0, None, 0, None)
-"""The kinds after which a stream checks that its user may still read the session."""
 
 
 @dataclass(eq=False)
