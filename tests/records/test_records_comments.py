@@ -5,11 +5,12 @@ annotations', with the mark the event poller compares)."""
 
 from __future__ import annotations
 
+from itertools import pairwise
+
 import pytest
 from support.records import collection_record, repositories, session_record, shape_id
 
 from curvefm.collection.record import Member
-
 from curvefm.errors import LimitExceeded, NotFound
 from curvefm.records.comments import NewComment, ReviewComments
 from curvefm.records.viewers import Viewers
@@ -94,5 +95,5 @@ def test_the_sessions_showing_a_members_comments_and_their_mark_moving_with_each
         change()
         marks.append(viewers.comment_marks(both))
         assert marks[-1].get(own.id) == marks[-1].get(further.id)  # both sessions show the same comments
-    assert all(a != b for a, b in zip(marks, marks[1:])), marks  # every change moved the mark
+    assert all(a != b for a, b in pairwise(marks)), marks  # every change moved the mark
     assert marks[-1] == {}
