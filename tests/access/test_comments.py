@@ -123,3 +123,18 @@ def test_bad_comments_are_refused_naming_what_is_wrong_and_the_limits(project):
         made(comment(rita, base, "m2", text="x", side="target", vertex=vertex))
     full = refused(comment(rita, base, "m2", text="x", side="target", vertex=4), 413, "4 comments on member m2")
     assert full.limit == "CURVEFM_MAX_REVIEW_COMMENTS"
+
+
+def test_the_annotator_of_a_further_annotation_replies_and_resolves_as_the_assignee_does(project):
+    lab, users, base = project
+    rita, abe, mia = users["rita"], users["abe"], users["mia"]
+    low = made(comment(rita, base, "m1", text="t1 ends too low", side="source", vertex=60))
+    refused(comment(abe, base, "m1", text="hm", reply_to=low.id), 403, "further annotation")
+    mia.post(f"{base}/members/m1/annotations", json={"user": "abe"}).raise_for_status()
+    reply = made(comment(abe, base, "m1", text="mine too", reply_to=low.id))
+    assert (reply.author, reply.reply_to) == ("abe", low.id)
+    assert resolve(abe, base, reply.id, True).raise_for_status().json()["resolved_by"] == "abe"
+    refused(comment(abe, base, "m1", text="and here", side="target", vertex=5), 403, "reviewer")
+    refused(comment(abe, base, "m2", text="hm", reply_to=low.id), 403)  # abe annotates m1 only
+    lab.owner.put(f"{base}/roles/abe", json={"role": "viewer"}).raise_for_status()  # no longer answers
+    refused(resolve(abe, base, low.id, False), 403)

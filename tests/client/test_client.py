@@ -272,3 +272,36 @@ def test_a_member_is_reviewed_run_when_accepted_and_annotated_twice(client, api,
     c.remove_truth("m1")
     with pytest.raises(NotFound):
         c.truth("m1")
+
+def test_review_comments_are_listed_added_replied_resolved_and_deleted(client, api, shape_ids):
+    s = client.session(*shape_ids, k=K)
+    s.add_curve(*CURVES[0])
+    c = client.collection(shape_ids[0], from_session=s.id, k=K, name="commented")
+    tokens = {name: add_user(api.data_dir, name) for name in ("remy", "aldo")}
+    c.grant("remy", "reviewer")
+    c.grant("aldo", "annotator")
+    c.annotate("m1", "aldo")
+    (member,) = c.info["members"]
+    with Client(api.url, token=tokens["remy"]) as remy, Client(api.url, token=tokens["aldo"]) as aldo:
+        events = client.open_session(member["session"]).events()
+        assert next(events)["kind"] == "hello"
+        reviewed, further = remy.open_collection(c.id), aldo.open_collection(c.id)
+        first = reviewed.comment("m1", "t1 starts too far up", "source", CURVES[0][0][0])
+        assert (first["author"], first["side"], first["vertex"]) == ("remy", "source", CURVES[0][0][0])
+        assert next(e for e in events if e["kind"] not in ("viewers", "prior"))["kind"] == "comments"
+        with pytest.raises(Forbidden, match="reviewer"):
+            further.comment("m1", "and here", "target", 5)
+        reply = further.reply("m1", first["id"], "moved it")
+        assert (reply["reply_to"], reply["vertex"], reply["author"]) == (first["id"], first["vertex"], "aldo")
+        assert further.resolve("m1", reply["id"])["resolved_by"] == "aldo"
+        assert reviewed.resolve("m1", first["id"], resolved=False)["resolved_by"] is None
+        assert [(x["id"], x["text"]) for x in c.comments("m1")] == [
+            (first["id"], "t1 starts too far up"),
+            (reply["id"], "moved it"),
+        ]
+        with pytest.raises(Forbidden, match="author"):
+            further.delete_comment("m1", first["id"])
+        reviewed.delete_comment("m1", first["id"])
+        assert c.comments("m1") == []
+        with pytest.raises(NotFound, match=first["id"]):
+            reviewed.reply("m1", first["id"], "gone")

@@ -1,14 +1,19 @@
 """Review comments in the database (both engines): threads pinned to a vertex, replies at their thread's vertex,
 resolving a thread from any of its comments, the per-member limit counted as comments are added, deletion with the
-replies, and the comments going with their collection."""
+replies, the comments going with their collection, and the sessions that show them (a member's own and its further
+annotations', with the mark the event poller compares)."""
 
 from __future__ import annotations
 
-import pytest
-from support.records import collection_record, repositories, shape_id
+from itertools import pairwise
 
+import pytest
+from support.records import collection_record, repositories, session_record, shape_id
+
+from curvefm.collection.record import Member
 from curvefm.errors import LimitExceeded, NotFound
 from curvefm.records.comments import NewComment, ReviewComments
+from curvefm.records.viewers import Viewers
 
 LIMIT = 4
 
@@ -23,7 +28,8 @@ def repo(db):
     repo["shapes"].add(template, 10, repo["alice"].id)
     record = collection_record(template, owner="alice")
     repo["collections"].create(record)
-    repo["cid"], repo["comments"] = record.id, ReviewComments(db)
+    repo["cid"], repo["revision"], repo["template"] = record.id, record.revision, template
+    repo["comments"] = ReviewComments(db)
     return repo
 
 
@@ -61,3 +67,33 @@ def test_a_thread_pinned_to_a_vertex_with_a_reply_resolved_and_reopened(repo):
         comments.delete(cid, "m1", first.id)
     repo["collections"].delete(cid)
     assert comments.thread(cid, "m1") == []
+
+
+def test_the_sessions_showing_a_members_comments_and_their_mark_moving_with_each_change(repo):
+    comments, cid, rita, ann = repo["comments"], repo["cid"], repo["rita"], repo["ann"]
+    template, shape = repo["template"], shape_id()
+    repo["shapes"].add(shape, 10, repo["alice"].id)
+    own = session_record(template, shape, owner="alice")
+    repo["collections"].add_members(cid, repo["revision"], [(Member(id="m1", shape=shape, session=own.id), own)])
+    further = session_record(template, shape, owner="alice")
+    repo["collections"].add_annotation(cid, "m1", ann.id, further)
+    assert comments.sessions(cid, "m1") == {own.id: own.revision, further.id: further.revision}
+    assert comments.annotates(cid, "m1", ann.id) and not comments.annotates(cid, "m1", rita.id)
+    assert not comments.annotates(cid, "m2", ann.id)
+
+    viewers, both = Viewers(repo["comments"].db), [own.id, further.id]
+    marks = [viewers.comment_marks(both)]
+    assert marks[0] == {}  # no comments yet
+    first = comments.add(cid, "m1", NewComment("here", "target", 3), rita.id, LIMIT)
+    changes = [
+        lambda: comments.add(cid, "m1", NewComment("moved", reply_to=first.id), ann.id, LIMIT),
+        lambda: comments.resolve(cid, "m1", first.id, ann.id, True),
+        lambda: comments.resolve(cid, "m1", first.id, rita.id, False),
+        lambda: comments.delete(cid, "m1", first.id),
+    ]
+    for change in [lambda: None, *changes]:
+        change()
+        marks.append(viewers.comment_marks(both))
+        assert marks[-1].get(own.id) == marks[-1].get(further.id)  # both sessions show the same comments
+    assert all(a != b for a, b in pairwise(marks)), marks  # every change moved the mark
+    assert marks[-1] == {}

@@ -261,6 +261,38 @@ def test_a_finished_refinement_is_an_event(deployment):
         bobs.close()
 
 
+def test_review_comments_reach_the_streams_of_the_members_sessions_across_processes(deployment):
+    _, first, second, bob = deployment
+    session = shared_session(first)
+    first.client.post(f"/sessions/{session}/curves", json={"source": [0, 2000], "target": [0, 2000]})
+    made = first.client.post("/collections", json={"template": first.shapes[0], "from_session": session})
+    collection = made.raise_for_status().json()["collection"]
+    base = f"/collections/{collection['id']}"
+    first.client.put(f"{base}/roles/bob", json={"role": "annotator"}).raise_for_status()
+    further = first.client.post(f"{base}/members/m1/annotations", json={"user": "bob"}).raise_for_status().json()
+    own = next(member["session"] for member in collection["members"] if member["id"] == "m1")
+    streams = [stream(second, bob, own), stream(second, bob, further["session"])]
+    comments = f"{base}/members/m1/comments"
+    try:
+        assert all(s.next("hello") for s in streams)
+        pinned = first.client.post(comments, json={"text": "too low", "side": "source", "vertex": 60})
+        assert pinned.status_code == 201, pinned.text
+        changes = [
+            lambda: bob.post(comments, json={"text": "moved", "reply_to": pinned.json()["id"]}),
+            lambda: first.client.patch(f"{comments}/{pinned.json()['id']}", json={"resolved": True}),
+            lambda: first.client.delete(f"{comments}/{pinned.json()['id']}"),
+        ]
+        for change in [None, *changes]:  # each change once the previous one was heard, on both pages
+            if change is not None:
+                assert change().status_code in (200, 201, 204)
+            for s in streams:
+                assert s.next("comments")["kind"] == "comments"
+        assert bob.get(comments).json() == []
+    finally:
+        for s in streams:
+            s.close()
+
+
 def test_a_server_with_open_streams_stops_promptly(deployment, module_processes):
     _, first, _, _ = deployment
     extra = module_processes.api(first.data_dir, env=FAST_TICKS)

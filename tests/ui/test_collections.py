@@ -449,3 +449,53 @@ def test_a_reviewer_pins_comments_to_vertices_and_the_annotator_sees_them_there(
     annotator.wait_for_selector(f"{entry}.resolved")
     assert api.client.get(f"{base}/members/m1/comments").json()[0]["resolved_by"] == "ann"
     assert not errors, errors
+
+
+def read_until(page, expression: str, arg, reads: int = 600):
+    """The first truthy value of ``expression`` (a function of ``arg``) in the page, read at most ``reads`` times
+    (a short pause between reads): the page changes by itself, no reload in between."""
+    for _ in range(reads):
+        value = page.evaluate(expression, arg)
+        if value:
+            return value
+        page.wait_for_timeout(50)
+    raise AssertionError(f"after {reads} reads the page still answers {value!r} to {expression}")
+
+
+def test_an_open_page_shows_the_comments_made_on_another_page_without_a_reload(browser, served):
+    """The reviewer's and the annotator's pages are open on the member; the reviewer pins a comment and the
+    annotator's page shows its pin (the session's event stream says the comments changed); the annotator resolves
+    the thread and the reviewer's page shows it resolved."""
+    api, view = served
+    template, shape = view["collection"]["template"], view["members"][0]["shape"]
+    body = {"name": "live comments", "template": template, "curves": TEMPLATE_CURVES, "members": [shape], "k": K}
+    made = api.client.post("/collections", json=body).raise_for_status().json()
+    collection_id, session = made["collection"]["id"], made["members"][0]["session"]
+    base = f"/collections/{collection_id}"
+    tokens = {name: add_user(api.data_dir, name) for name in ("rose", "abby")}
+    api.client.put(f"{base}/roles/rose", json={"role": "reviewer"}).raise_for_status()
+    api.client.put(f"{base}/roles/abby", json={"role": "annotator"}).raise_for_status()
+    api.client.put(f"{base}/members/m1/assignee", json={"user": "abby"}).raise_for_status()
+    errors = []
+    reviewer = open_member_page(browser, api, session, tokens["rose"], collection_id, errors)
+    annotator = open_member_page(browser, api, session, tokens["abby"], collection_id, errors)
+    assert comments_shown(annotator, 0) == []
+    page_url = annotator.url
+
+    reviewer.on("dialog", lambda dialog: dialog.accept("look here"))
+    ((pair, _),) = endpoint_pairs(pickable_vertices(reviewer), 1, seed=7)
+    reviewer.keyboard.down("Alt")
+    reviewer.mouse.click(*pair["target"])
+    reviewer.keyboard.up("Alt")
+    (stored,) = comments_shown(reviewer, 1)
+    assert (stored["side"], stored["vertex"], stored["text"]) == ("target", pair["id"], "look here")
+
+    markers = read_until(annotator, "() => window.curvefm.commentMarkers('target')", None)
+    assert [(m["id"], m["vertex"]) for m in markers] == [(stored["id"], pair["id"])]
+    entry = f'#comment-list li[data-comment-id="{stored["id"]}"]'
+    assert "look here" in annotator.text_content(entry)
+    annotator.click(f'{entry} button[data-action="resolve"]')
+    resolved = "(id) => (window.curvefm.comments || []).find((c) => c.id === id && c.resolved)"
+    assert read_until(reviewer, resolved, stored["id"])["resolved_by"] == "abby"
+    assert annotator.url == page_url  # no reload, no navigation
+    assert not errors, errors

@@ -506,6 +506,33 @@ class Collection:
         """Every member's review, members in order."""
         return self.client.json("GET", f"{self.path}/reviews")
 
+    def comments(self, member: str) -> list[dict[str, Any]]:
+        """The member's review comments, oldest first (``id``, ``side``, ``vertex``, ``text``, ``author``,
+        ``created_at``, ``reply_to``: a reply's thread, ``resolved_by``, ``resolved_at``: on a thread's first)."""
+        return self.client.json("GET", self._comments(member))
+
+    def comment(self, member: str, text: str, side: Literal["source", "target"], vertex: int) -> dict[str, Any]:
+        """Start a thread pinned to ``vertex`` (a file id) of the template (``source``) or of the member's shape
+        (``target``): a reviewer, manager or owner. Returns the comment."""
+        return self.client.json("POST", self._comments(member), json={"text": text, "side": side, "vertex": vertex})
+
+    def reply(self, member: str, comment: str, text: str) -> dict[str, Any]:
+        """Reply to ``comment`` (any comment of its thread): reviewers, and the member's annotators (its assignee,
+        those of its further annotations). Returns the reply."""
+        return self.client.json("POST", self._comments(member), json={"text": text, "reply_to": comment})
+
+    def resolve(self, member: str, comment: str, resolved: bool = True) -> dict[str, Any]:
+        """Resolve the thread of ``comment`` (``resolved=False``: reopen it), as whoever may reply; returns its
+        first comment."""
+        return self.client.json("PATCH", f"{self._comments(member)}/{comment}", json={"resolved": resolved})
+
+    def delete_comment(self, member: str, comment: str) -> None:
+        """Delete a comment of yours (a thread's first comment: with its replies)."""
+        self.client.request("DELETE", f"{self._comments(member)}/{comment}")
+
+    def _comments(self, member: str) -> str:
+        return f"{self.path}/members/{member}/comments"
+
     def annotate(self, member: str, user: str) -> dict[str, Any]:
         """Ask the annotator named ``user`` for a further, independent annotation of ``member`` (double
         annotation); returns it (``session``: where they answer, or :meth:`answer` with ``annotator=user``)."""

@@ -105,6 +105,25 @@ class ReviewComments:
             if tx.execute(delete(m.ReviewComment).where(*_named(collection_id, member_id, comment_id))).rowcount == 0:
                 raise _unknown(member_id, comment_id)
 
+    def sessions(self, collection_id: str, member_id: str) -> dict[str, int]:
+        """The sessions that show the member's comments, with their revisions: its own and its further
+        annotations'."""
+        x = m.MemberAnnotation
+        own = select(m.Member.session_id).where(m.Member.collection_id == collection_id, m.Member.id == member_id)
+        further = select(x.session_id).where(x.collection_id == collection_id, x.member_id == member_id)
+        with self.db.read() as conn:
+            rows = conn.execute(
+                select(m.Session.id, m.Session.revision).where(m.Session.id.in_(own.union_all(further)))
+            ).all()
+        return {session_id: revision for session_id, revision in rows}
+
+    def annotates(self, collection_id: str, member_id: str, user_id: int) -> bool:
+        """Whether the user makes a further annotation of the member (double annotation)."""
+        x = m.MemberAnnotation
+        mine = (x.collection_id == collection_id, x.member_id == member_id, x.user_id == user_id)
+        with self.db.read() as conn:
+            return conn.execute(select(x.session_id).where(*mine)).first() is not None
+
 
 def _comments() -> Select[Any]:
     c = m.ReviewComment

@@ -1,5 +1,6 @@
 """Who has a session open (``session_viewers``: a row per open event stream), and what the API processes that
-follow sessions without Redis read each tick: the sessions' revisions and the end of their last refinement.
+follow sessions without Redis read each tick: the sessions' revisions, the end of their last refinement and a mark of
+their collection member's review comments.
 
 A stream's row lives until ``expires_at``; its API process pushes that on at every tick while the stream lasts,
 so a process that died leaves rows that expire on their own (:meth:`Viewers.purge`).
@@ -8,6 +9,7 @@ so a process that died leaves rows that expire on their own (:meth:`Viewers.purg
 from __future__ import annotations
 
 from collections.abc import Collection, Sequence
+from typing import Any
 
 from sqlalchemy import delete, func, insert, select, update
 
@@ -95,3 +97,33 @@ class Viewers:
                 .group_by(m.Job.session_id)
             )
             return {session_id: ended for session_id, ended in rows if session_id is not None and ended is not None}
+
+    def comment_marks(self, session_ids: Sequence[str]) -> dict[str, tuple[Any, ...]]:
+        """Per session of a collection member (its own or a further annotation's) whose member has review comments,
+        a mark that changes with any of them: their count, the newest's creation, the resolved threads' count and
+        the newest resolution (an added comment is the newest, a deletion lowers the count, a resolution is the
+        newest, a reopening lowers that count)."""
+        if not session_ids:
+            return {}
+        x, c = m.MemberAnnotation, m.ReviewComment
+        owners = (
+            select(m.Member.session_id, m.Member.collection_id, m.Member.id.label("member_id"))
+            .where(m.Member.session_id.in_(session_ids))
+            .union_all(select(x.session_id, x.collection_id, x.member_id).where(x.session_id.in_(session_ids)))
+            .subquery()
+        )
+        of_member = (c.collection_id == owners.c.collection_id) & (c.member_id == owners.c.member_id)
+        query = (
+            select(
+                owners.c.session_id,
+                func.count(c.id),
+                func.max(c.created_at),
+                func.count(c.resolved_at),
+                func.max(c.resolved_at),
+            )
+            .select_from(owners)
+            .join(c, of_member)
+            .group_by(owners.c.session_id)
+        )
+        with self.db.read() as conn:
+            return {row[0]: tuple(row[1:]) for row in conn.execute(query)}

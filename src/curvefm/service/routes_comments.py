@@ -1,9 +1,10 @@
 """Review comments: a thread per collection member, each comment pinned to a vertex of either shape of the
 member's session (``source``: the template, ``target``: the member's shape), so that its annotator sees where a
 reviewer points. Whoever may read the collection reads them; reviewers (managers, owners, admins) start threads;
-they and whoever may answer the member (its annotator) reply, and resolve or reopen threads; a comment's author
-(or an admin) deletes it. Comments do not depend on the review state (a locked member is discussed too). Every
-comment, resolution and deletion is audited."""
+they and whoever may answer the member (its annotator, and the annotators of its further annotations) reply, and
+resolve or reopen threads; a comment's author (or an admin) deletes it. Comments do not depend on the review state
+(a locked member is discussed too). Every comment, resolution and deletion is audited, and announced to the pages
+that show the member's sessions (a ``comments`` session event)."""
 
 from __future__ import annotations
 
@@ -34,7 +35,7 @@ Part = Literal["start", "reply"]
 REFUSALS: dict[Part, str] = {
     "start": "starting a comment thread needs the reviewer, manager or owner role",
     "reply": "replying to comments and resolving them needs the reviewer, manager or owner role, or answering the "
-    "member (its annotator)",
+    "member (its annotator, or an annotator of a further annotation of it)",
 }
 
 
@@ -58,12 +59,14 @@ def add_comment(
     """Start a thread pinned to ``vertex`` (a file id) of the ``side`` shape (``source``: the template, ``target``:
     the member's shape; 409 for a vertex the shape does not have, naming its vertex count): a reviewer, a manager,
     an owner or an admin. A reply (``reply_to``) joins that comment's thread at its vertex: they and whoever may
-    answer the member (its annotator). Text up to ``CURVEFM_MAX_COMMENT_CHARS`` (422 past it), at most
-    ``CURVEFM_MAX_REVIEW_COMMENTS`` comments a member (413). Audited as ``collection.comment``."""
+    answer the member (its annotator, and the annotators of its further annotations). Text up to
+    ``CURVEFM_MAX_COMMENT_CHARS`` (422 past it), at most ``CURVEFM_MAX_REVIEW_COMMENTS`` comments a member (413).
+    Audited as ``collection.comment``; the pages that show the member's sessions hear a ``comments`` event."""
     new = _checked_comment(services, user, collection_id, member_id, body)
     comment = services.comments.add(collection_id, member_id, new, user.id, services.settings.max_review_comments)
     detail = {"member": member_id, "comment": comment.id, "side": comment.side, "vertex": comment.vertex}
     services.audit.record(user.name, "collection.comment", collection_id, {**detail, "reply_to": comment.reply_to})
+    _announce(services, collection_id, member_id)
     return _view(comment)
 
 
@@ -77,6 +80,7 @@ def resolve_comment(
     first = services.comments.resolve(collection_id, member_id, comment_id, user.id, body.resolved)
     detail = {"member": member_id, "comment": first.id, "resolved": body.resolved}
     services.audit.record(user.name, "collection.comment_resolve", collection_id, detail)
+    _announce(services, collection_id, member_id)
     return _view(first)
 
 
@@ -94,6 +98,7 @@ def delete_comment(
     services.audit.record(
         user.name, "collection.comment_delete", collection_id, {"member": member_id, "comment": comment_id}
     )
+    _announce(services, collection_id, member_id)
     return Response(status_code=204)
 
 
@@ -121,8 +126,18 @@ def _discussion(services: Services, user: User, collection_id: str, member_id: s
 
 
 def _answers(services: Services, user: User, collection_id: str, member_id: str, held: frozenset) -> bool:
+    """Whether ``user`` may answer the member, or makes a further annotation of it (while they may answer)."""
     standing = services.collections.records.standing(collection_id, viewer(user), member_id)
-    return standing is not None and may_answer(user, standing, held)
+    if standing is not None and may_answer(user, standing, held):
+        return True
+    return "answer" in held and services.comments.annotates(collection_id, member_id, user.id)
+
+
+def _announce(services: Services, collection_id: str, member_id: str) -> None:
+    """Tell the pages that show the member's sessions (its own, its further annotations') that its comments
+    changed, in every API process (as the sessions' own changes are)."""
+    for session_id, revision in services.comments.sessions(collection_id, member_id).items():
+        services.live.notify(session_id, {"kind": "comments", "revision": revision})
 
 
 def _check_vertex(services: Services, record: CollectionRecord, member_id: str, side: str, vertex: int) -> None:

@@ -29,6 +29,8 @@ Each event is one `data:` line of JSON with its `kind` and the session's `revisi
   is past yours (`GET /sessions/{id}`, its transfer, its quality).
 * `prior`: the map of this revision improved (its landmark prior landed): read the transfer again.
 * `refined`: a refinement job of the session ended (`job` and `state` with Redis): list the refinements again.
+* `comments`: the review comments of the session's collection member changed (added, replied to, resolved,
+  reopened, deleted; heard by the member's own session and its further annotations'): list them again.
 * `viewers`: who has the session open changed (`viewers`).
 * `reconnected`: the server lost events for a while (Redis restarted): compare revisions.
 * `deleted`, `forbidden` (its sharing or your role no longer lets you read it), `logged-out` (the credential the

@@ -8,9 +8,11 @@ through the other routes. Delivery across processes:
   session's channel (:mod:`curvefm.workers.session_events`), and every API process follows its deployment's
   channels and hands each event to its streams of that session;
 * without Redis (several processes may serve one SQLite file), each process hands its own changes to its streams
-  at once, and one poller per process reads, every ``events_poll_s``, the revisions and the last refinement's end
-  of the sessions it has streams of (one query each, whatever the number of streams): another process's change
-  arrives as ``changed``.
+  at once, and one poller per process reads, every ``events_poll_s``, the revisions, the last refinement's end and
+  a mark of the member's review comments (:meth:`curvefm.records.viewers.Viewers.comment_marks`) of the sessions
+  it has streams of (one query each, whatever the number of streams): another process's change arrives as
+  ``changed`` (``refined``, ``comments``). A comment made on the stream's own process is heard twice then (at once,
+  and from the poller's mark): a hint, harmless.
 
 Presence: each stream is a row of ``session_viewers`` (:class:`curvefm.records.viewers.Viewers`) that its process
 keeps alive at every tick; the same tick reads who has each followed session open, and a change of that is a
@@ -33,6 +35,7 @@ import time
 from collections.abc import AsyncIterator, Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
+from typing import Any
 
 from starlette.concurrency import run_in_threadpool
 
@@ -56,6 +59,9 @@ CHANGES = frozenset({"curve-added", "curve-removed", "curve-replaced", "renamed"
 """The kinds whose ``revision`` is the session's new one."""
 ACCESS_CHANGES = frozenset({"sharing", "changed"})
 """The kinds after which a stream checks that its user may still read the session."""
+CommentMark = tuple[Any, ...]
+"""What changes with any change of a member's review comments (:meth:`Viewers.comment_marks`)."""
+NO_COMMENTS: CommentMark = (0, None, 0, None)
 
 
 @dataclass(eq=False)
@@ -71,11 +77,12 @@ class Stream:
 @dataclass(frozen=True)
 class Observed:
     """What one tick read: who has each followed session open; without Redis also their revisions (sessions
-    gone left out) and when their last refinement ended."""
+    gone left out), when their last refinement ended and the marks of their member's review comments."""
 
     present: dict[str, tuple[str, ...]]
     revisions: dict[str, int] | None = None
     refined: dict[str, float] | None = None
+    comments: dict[str, CommentMark] | None = None
 
 
 class SessionEvents:
@@ -92,6 +99,7 @@ class SessionEvents:
         self.streams: dict[str, dict[str, Stream]] = {}  # session id -> stream id -> stream
         self.revisions: dict[str, int] = {}  # per followed session: the newest revision its streams were told of
         self.refined: dict[str, float] = {}  # without Redis: when its last refinement ended, as last read
+        self.comments: dict[str, CommentMark] = {}  # without Redis: the mark of its member's comments, as last read
         self.present: dict[str, tuple[str, ...]] = {}
         self.stopping = asyncio.Event()
         self.loop: asyncio.AbstractEventLoop | None = None
@@ -162,21 +170,22 @@ class SessionEvents:
         following = record.id in self.streams
         self.streams.setdefault(record.id, {})[stream.id] = stream  # before reading: no change falls in between
         try:
-            revision, viewers, refined = await run_in_threadpool(self._enter, stream)
+            revision, viewers, polled = await run_in_threadpool(self._enter, stream)
         except BaseException:
             self._forget(stream)
             raise
         if not following:
             self.revisions.setdefault(record.id, revision)
             self.present.setdefault(record.id, viewers)
-            if refined is not None:
-                self.refined.setdefault(record.id, refined)
+            if polled is not None:
+                self.refined.setdefault(record.id, polled[0])
+                self.comments.setdefault(record.id, polled[1])
         stream.queue.put_nowait({"kind": "hello", "revision": revision, "viewers": list(viewers)})
         return stream
 
-    def _enter(self, stream: Stream) -> tuple[int, tuple[str, ...], float | None]:
-        """Record the stream (counted against the user's limit); the session's revision, viewers and last
-        refinement's end (without Redis)."""
+    def _enter(self, stream: Stream) -> tuple[int, tuple[str, ...], tuple[float, CommentMark] | None]:
+        """Record the stream (counted against the user's limit); the session's revision, viewers and (without
+        Redis) its last refinement's end and its member's comment mark."""
         now = time.time()
         setting = env_name("max_event_streams")
         self.viewers.open(
@@ -184,16 +193,17 @@ class SessionEvents:
         )
         sessions = [stream.session_id]
         revision = self.viewers.revisions(sessions).get(stream.session_id, -1)
-        refined = (
-            None if self.channels is not None else self.viewers.refinements_ended(sessions).get(stream.session_id, 0.0)
-        )
-        return revision, self.viewers.present(sessions, now)[stream.session_id], refined
+        polled = None
+        if self.channels is None:
+            refined = self.viewers.refinements_ended(sessions).get(stream.session_id, 0.0)
+            polled = refined, self.viewers.comment_marks(sessions).get(stream.session_id, NO_COMMENTS)
+        return revision, self.viewers.present(sessions, now)[stream.session_id], polled
 
     def _forget(self, stream: Stream) -> None:
         streams = self.streams.get(stream.session_id, {})
         streams.pop(stream.id, None)
         if not streams:
-            for known in (self.streams, self.revisions, self.refined, self.present):
+            for known in (self.streams, self.revisions, self.refined, self.comments, self.present):
                 known.pop(stream.session_id, None)
         if self.loop is not None and not self.loop.is_closed():  # not awaited: the stream may be being canceled
             self.loop.run_in_executor(None, self._close_row, stream.id)
@@ -284,7 +294,12 @@ class SessionEvents:
         present = self.viewers.present(session_ids, now)
         if self.channels is not None:
             return Observed(present)
-        return Observed(present, self.viewers.revisions(session_ids), self.viewers.refinements_ended(session_ids))
+        return Observed(
+            present,
+            self.viewers.revisions(session_ids),
+            self.viewers.refinements_ended(session_ids),
+            self.viewers.comment_marks(session_ids),
+        )
 
     def _compare(self, observed: Observed) -> None:
         """Deliver what changed since the last tick, for the sessions still followed."""
@@ -292,7 +307,7 @@ class SessionEvents:
             if session_id in self.streams and viewers != self.present.get(session_id):
                 self.present[session_id] = viewers
                 self._deliver(session_id, {"kind": "viewers", "viewers": list(viewers)})
-        if observed.revisions is None or observed.refined is None:
+        if observed.revisions is None or observed.refined is None or observed.comments is None:
             return
         for session_id in list(self.revisions):
             revision = observed.revisions.get(session_id)
@@ -305,6 +320,10 @@ class SessionEvents:
                 self._deliver(session_id, {"kind": "refined", "revision": revision})
             if session_id in self.refined:
                 self.refined[session_id] = max(self.refined[session_id], ended)
+            mark = observed.comments.get(session_id, NO_COMMENTS)
+            if revision is not None and session_id in self.comments and mark != self.comments[session_id]:
+                self.comments[session_id] = mark
+                self._deliver(session_id, {"kind": "comments", "revision": revision})
 
     async def _follow_channels(self) -> None:
         assert self.channels is not None

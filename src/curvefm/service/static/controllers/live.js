@@ -5,6 +5,7 @@ import { api } from "../api.js";
 import { setViewers, state, subscribe } from "../store.js";
 import { toast } from "../views/messages.js";
 import { showViewers } from "../views/presence.js";
+import { refreshComments } from "./comments.js";
 import { resync } from "./connection.js";
 import { refreshQuality } from "./quality.js";
 import { restoreRefinement } from "./refine.js";
@@ -43,15 +44,19 @@ function stopFollowing() {
 
 function received(event) {
   switch (event.kind) {
-    case "hello":
+    case "hello": // also after a reconnect: what changed meanwhile is read again (comments have no revision)
       showPresence(event.viewers);
       announce(event.revision);
+      refreshComments();
       break;
     case "viewers":
       showPresence(event.viewers);
       break;
     case "prior": // the map of this revision improved: the texture follows by itself (feedback.js), the quality not
       if (event.revision === state.session.revision && state.editing === 0) refreshQuality();
+      break;
+    case "comments": // the member's review comments changed (here, elsewhere, on another API process)
+      refreshComments();
       break;
     case "refined":
       if (!state.refineJob) restoreRefinement(); // another page's refinement; this page follows its own
@@ -71,6 +76,7 @@ function received(event) {
       break;
     case "reconnected": // events may have been lost meanwhile
       catchUp(true);
+      refreshComments();
       break;
     case "closing": // the server stops: the browser reconnects on its own
       break;
