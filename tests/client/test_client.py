@@ -273,6 +273,7 @@ def test_a_member_is_reviewed_run_when_accepted_and_annotated_twice(client, api,
     with pytest.raises(NotFound):
         c.truth("m1")
 
+
 def test_review_comments_are_listed_added_replied_resolved_and_deleted(client, api, shape_ids):
     s = client.session(*shape_ids, k=K)
     s.add_curve(*CURVES[0])
