@@ -237,7 +237,10 @@ def cmd_collection_status(args) -> int:
 def cmd_collection_export(args) -> int:
     from curvefm import registry
     from curvefm.collection import archive_summary, run_maps, write_npz, write_zip
+    from curvefm.service.agreement import archive_agreement
+    from curvefm.service.settings import Settings
 
+    settings = Settings.from_env(data_dir=args.data)
     manage = _Collections(args.data)
     _, parsed = registry.load("converter", args.converter, _json_option(args.params, "--params"))
     params = parsed.model_dump()
@@ -251,7 +254,12 @@ def cmd_collection_export(args) -> int:
     )
     record = manage.collections.record(args.collection)
     maps = run_maps(record, run, manage.job_view, manage.store.root / "results")
-    (write_zip if args.out.endswith(".zip") else write_npz)(args.out, maps, archive_summary(record, run, maps))
+    # the operator's authority on the data directory: the check members' accuracy too, as for a manager
+    agreement = archive_agreement(
+        manage.collections, record, settings.agreement_points, settings.agreement_threshold, checks=True
+    )
+    summary = archive_summary(record, run, maps, agreement)
+    (write_zip if args.out.endswith(".zip") else write_npz)(args.out, maps, summary)
     print(f"run {run.id}: {len(maps)} members written to {args.out}")
     return 0
 

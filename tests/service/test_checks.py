@@ -2,17 +2,22 @@
 (FAUST registrations share vertex ids, the true map is the identity), one as text and one as ``.npy``; annotators
 answer the template curves, one at the true endpoints and one a few vertices beside them. The accuracy the service
 reports is checked against the same error computed here from the sessions' served maps and the truth, never at a
-curve end; only those who manage the collection see the truth or the accuracy."""
+curve end; only those who manage the collection see the truth or the accuracy, and ``curvefm collection export`` (the
+operator's authority on the data directory) writes the same report, checks included, into its archive."""
 
 from __future__ import annotations
 
 import io
 import json
+import os
+import subprocess
+import sys
 
 import numpy as np
 from support.agreement import K, beside, faust_collection, served_map
 from support.errors import expect
 from support.processes import TEST_USER
+from support.records import database_env
 
 from curvefm.geometry import farthest_point_sampling, pair_geodesic_distances
 from curvefm.store import Store
@@ -38,6 +43,14 @@ def error_by_hand(client, store, session, template, member, rows, template_ends,
     kept = rows[~at_ends]
     images = served_map(client, store, session, template, member, kept)
     return float(pair_geodesic_distances(mesh, images, kept).mean() / np.sqrt(mesh.area))
+
+
+def cli_summary(data_dir, collection_id: str, out) -> dict:
+    """The ``summary.json`` of ``curvefm collection export`` run on the API's data directory and records."""
+    env = {**os.environ, **database_env(data_dir), "CURVEFM_AGREEMENT_POINTS": str(POINTS)}
+    command = [sys.executable, "-m", "curvefm.cli", "collection", "export", collection_id, "--out", str(out)]
+    subprocess.run([*command, "--data", str(data_dir)], env=env, capture_output=True, check=True)
+    return json.loads(str(np.load(out)["summary.json"]))
 
 
 def test_check_members_score_each_annotator_against_the_truth(processes, tmp_path, shared_data):
@@ -107,6 +120,8 @@ def test_check_members_score_each_annotator_against_the_truth(processes, tmp_pat
     assert summary["agreement"]["checks"] == checks
     seen = json.loads(str(np.load(io.BytesIO(ann.get(archive).raise_for_status().content))["summary.json"]))
     assert seen["agreement"]["checks"] is None and seen["agreement"]["members"] == summary["agreement"]["members"]
+    # the command line has the operator's authority: its archive carries the checks as a manager sees them
+    assert cli_summary(api.data_dir, base.rsplit("/", 1)[1], tmp_path / "cli.npz")["agreement"] == report
 
     assert owner.delete(f"{base}/members/m2/truth").status_code == 204
     expect(owner.get(f"{base}/members/m2/truth"), 404, "not_found", "no ground truth")

@@ -275,3 +275,45 @@ def _posts_of(receiver: Receiver, collection: str) -> list[dict]:
     with receiver.lock:
         bodies = [json.loads(p["body"]) for p in receiver.posts if p["path"] == "/ok"]
     return [body for body in bodies if body["collection"] == collection]
+
+
+@pytest.mark.parametrize("queue", ["embedded", "redis"])
+def test_events_of_the_records_layer_keep_the_configured_delivery_log(queue, processes, tmp_path, receiver, redis_url):
+    """``run.ended`` (recorded with the run's last job's end: by the API's in-process executor, or by the worker,
+    whose environment does not set the size) and ``member.removed`` (a member's session deleted directly) keep each
+    webhook's newest ``CURVEFM_WEBHOOK_LOG_SIZE`` deliveries, as the service's own events do."""
+    prefix = f"cfmtest-{uuid.uuid4().hex[:10]}-"
+    env = {**SETTINGS, "CURVEFM_WEBHOOK_LOG_SIZE": "1", "CURVEFM_QUEUE_PREFIX": prefix}
+    try:
+        if queue == "redis":
+            api = processes.api(tmp_path / "data", redis_url=redis_url, env=env)
+            processes.worker(redis_url, prefix, "log-size")
+        else:
+            api = processes.api(tmp_path / "data", env=env)
+        _records_layer_events_keep_one_delivery(Lab(api), receiver)
+    finally:
+        delete_prefix(redis_url, prefix)
+
+
+def _records_layer_events_keep_one_delivery(lab: Lab, receiver: Receiver) -> None:
+    collection = lab.new_collection(lab.owner, _session_with_curve(lab))
+    hook = _register(lab, collection, f"{receiver.url}/ok", ["run.ended", "member.removed"])
+    log = f"/collections/{collection}/webhooks/{hook['id']}/deliveries"
+    for _ in range(2):
+        lab.finished_run(lab.owner, collection)
+        (delivery,) = _delivered(lab, log)
+        assert delivery["event"] == "run.ended"  # the one before, delivered, forgotten
+    (member,) = lab.owner.get(f"/collections/{collection}").raise_for_status().json()["members"]
+    lab.owner.delete(f"/sessions/{member['session']}").raise_for_status()
+    assert [d["event"] for d in _delivered(lab, log)] == ["member.removed"]
+
+
+def _delivered(lab: Lab, log: str, timeout: float = 60) -> list[dict]:
+    """The webhook's delivery log once every delivery in it was delivered."""
+    deadline = time.monotonic() + timeout
+    while True:
+        deliveries = lab.owner.get(log).raise_for_status().json()
+        if all(d["state"] == "delivered" for d in deliveries):
+            return deliveries
+        assert time.monotonic() < deadline, deliveries
+        time.sleep(0.05)

@@ -25,7 +25,7 @@ from curvefm.records import models as m
 from curvefm.records.common import DEFAULT_PAGE, Page, Viewer, check_page, well_formed
 from curvefm.records.engine import Database
 from curvefm.records.users import owner_id, owner_name
-from curvefm.records.webhooks import announce_run_end
+from curvefm.records.webhooks import DEFAULT_LOG_SIZE, announce_run_end
 
 PROGRESS_WRITE_INTERVAL_S = 2.0
 ENDED = m.ENDED_STATES
@@ -70,8 +70,9 @@ class JobRow:
 
 
 class Jobs:
-    def __init__(self, database: Database):
-        self.db = database
+    def __init__(self, database: Database, webhook_log_size: int = DEFAULT_LOG_SIZE):
+        """``webhook_log_size``: the deliveries each webhook keeps when a job's end announces its run's end."""
+        self.db, self.webhook_log_size = database, webhook_log_size
         self._progress_written: dict[str, float] = {}
 
     def create(
@@ -118,7 +119,7 @@ class Jobs:
             unended = query.where(m.Job.state.not_in(ENDED))
             ends = values.get("state") in ENDED and tx.execute(unended.values(**values)).rowcount == 1
             if ends:  # this change ended the job (of two processes ending it at once, one did)
-                announce_run_end(tx, job_id)
+                announce_run_end(tx, job_id, self.webhook_log_size)
             elif values:
                 tx.execute((unended if only_unended else query).values(**values))
             job = _load(tx, job_id)

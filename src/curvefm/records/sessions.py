@@ -39,7 +39,7 @@ from curvefm.records.common import (
 )
 from curvefm.records.engine import Database, shared_database
 from curvefm.records.users import owner_id, owner_name
-from curvefm.records.webhooks import announce_member_removed
+from curvefm.records.webhooks import DEFAULT_LOG_SIZE, announce_member_removed
 from curvefm.session.record import CurveRecord, SessionRecord, UnknownSession
 from curvefm.store import Store
 
@@ -113,9 +113,10 @@ class Sessions:
         lock_timeout_s: float = 30.0,
         stored_shape: StoredShape | None = None,
         max_session_bytes: int = MAX_SESSION_BYTES,
+        webhook_log_size: int = DEFAULT_LOG_SIZE,
     ):
         self.db, self.max_curves, self.max_curve_bytes = database, max_curves, max_curve_bytes
-        self.max_session_bytes = max_session_bytes
+        self.max_session_bytes, self.webhook_log_size = max_session_bytes, webhook_log_size
         self.lock_timeout_s = lock_timeout_s
         self.stored_shape = stored_shape
 
@@ -292,7 +293,7 @@ class Sessions:
                 .where(m.Collection.id.in_(member_of))
                 .values(revision=m.Collection.revision + 1, updated_at=now())
             )
-            announce_member_removed(tx, session_id)
+            announce_member_removed(tx, session_id, self.webhook_log_size)
             if tx.execute(delete(m.Session).where(m.Session.id == session_id)).rowcount != 1:
                 raise UnknownSession(session_id)
         return jobs

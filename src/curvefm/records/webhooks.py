@@ -146,7 +146,7 @@ class Webhooks:
     def run_recorded(self, collection_id: str, run_id: str) -> None:
         """A run was just recorded: announce its end if its jobs all ended before it was (quick jobs)."""
         with self.db.write() as conn:
-            announce_if_ended(conn, collection_id, run_id)
+            announce_if_ended(conn, collection_id, run_id, self.log_size)
 
     def claim(self, now: float, lease_s: float, limit: int) -> list[Due]:
         """Up to ``limit`` pending deliveries that are due, leased to the caller until ``now + lease_s`` (another
@@ -250,28 +250,29 @@ def notify(
     return ids
 
 
-def announce_member_removed(conn: Connection, session_id: str) -> None:
+def announce_member_removed(conn: Connection, session_id: str, log_size: int) -> None:
     """The session is being deleted (in ``conn``'s transaction, before its row goes): when it is a collection's
     member, the member goes with it; announce ``member.removed``, whether the member was removed as such or its
-    session was deleted directly."""
+    session was deleted directly (each webhook keeping its newest ``log_size`` deliveries)."""
     members = conn.execute(
         select(m.Member.collection_id, m.Member.id, m.Member.shape).where(m.Member.session_id == session_id)
     ).all()
     for collection_id, member_id, shape in members:
-        notify(conn, collection_id, WebhookEvent.MEMBER_REMOVED, {"member": member_id, "shape": shape})
+        data = {"member": member_id, "shape": shape}
+        notify(conn, collection_id, WebhookEvent.MEMBER_REMOVED, data, log_size=log_size)
 
 
-def announce_run_end(conn: Connection, job_id: str) -> None:
+def announce_run_end(conn: Connection, job_id: str, log_size: int) -> None:
     """The job just ended (in ``conn``'s transaction): announce the end of each run of which it was the last job
     to end. The run's row is locked first, so of two last jobs ending at once the second sees the first's end."""
     runs = conn.execute(
         select(m.RunMember.collection_id, m.RunMember.run_id).where(m.RunMember.job_id == job_id).distinct()
     ).all()
     for collection_id, run_id in runs:
-        announce_if_ended(conn, collection_id, run_id)
+        announce_if_ended(conn, collection_id, run_id, log_size)
 
 
-def announce_if_ended(conn: Connection, collection_id: str, run_id: str) -> bool:
+def announce_if_ended(conn: Connection, collection_id: str, run_id: str, log_size: int) -> bool:
     """Announce ``run.ended`` when every job of the run has ended (each end of a run once: a job retried and
     ended again ends the run again); whether it has ended."""
     run = conn.execute(
@@ -291,7 +292,8 @@ def announce_if_ended(conn: Connection, collection_id: str, run_id: str) -> bool
     last_end = max((ended_at or 0.0 for _, _, ended_at in states), default=0.0)
     counts = Counter(state or EXPIRED for _, state, _ in states)
     data = {"run": run_id, "converter": run.converter, "members": len(states), "states": dict(sorted(counts.items()))}
-    notify(conn, collection_id, WebhookEvent.RUN_ENDED, data, key=f"run.ended:{collection_id}:{run_id}:{last_end!r}")
+    key = f"run.ended:{collection_id}:{run_id}:{last_end!r}"
+    notify(conn, collection_id, WebhookEvent.RUN_ENDED, data, key, log_size)
     return True
 
 

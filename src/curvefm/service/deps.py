@@ -93,6 +93,7 @@ def start_services(settings: Settings) -> Services:
         settings.job_ttl_s,
         settings.sizing,
         None if settings.redis_url else settings.memory_budget(),
+        settings.webhook_log_size,
     )
     records = Sessions(
         database,
@@ -101,6 +102,7 @@ def start_services(settings: Settings) -> Services:
         lock_timeout_s=settings.session_lock_timeout_s,
         stored_shape=partial(stored_mesh_bytes, store),
         max_session_bytes=settings.max_session_bytes,
+        webhook_log_size=settings.webhook_log_size,
     )
     live = LiveSessions(
         store,

@@ -42,6 +42,7 @@ from curvefm.morphometrics import (
 )
 from curvefm.records.collections import ReviewState
 from curvefm.records.common import MAX_OFFSET, MAX_PAGE
+from curvefm.service.agreement import archive_agreement
 from curvefm.service.auth import AUTHENTICATED, CurrentUser
 from curvefm.service.deps import (
     JOB_ERRORS,
@@ -85,7 +86,7 @@ from curvefm.service.permissions import (
     refuse_locked,
     session_for,
 )
-from curvefm.service.routes_reviews import agreement_report, review_view
+from curvefm.service.routes_reviews import review_view
 from curvefm.service.routes_sessions import IfMatch, converter_params, expected_revision
 from curvefm.service.routes_shapes import store_upload
 from curvefm.session import BasisNeed, SessionRecord, basis_available
@@ -581,9 +582,10 @@ def get_archive(
     record = services.collections.record(collection_id)
     run, maps = _maps(services, record, run_id)
     out = io.BytesIO()
-    doubled = any(a.further for a in services.collections.records.annotations(collection_id))
-    checks = manages and bool(services.collections.records.check_members(collection_id))
-    agreement = agreement_report(services, record, checks).model_dump() if doubled or checks else None
+    settings = services.settings
+    agreement = archive_agreement(
+        services.collections, record, settings.agreement_points, settings.agreement_threshold, manages
+    )
     (write_npz if kind == "npz" else write_zip)(out, maps, archive_summary(record, run, maps, agreement))
     filename = f"collection_{collection_id}_{run_id}.{kind}"
     headers = {"Content-Disposition": f'attachment; filename="{filename}"'}

@@ -23,6 +23,7 @@ from pathlib import Path
 
 from curvefm.errors import Conflict, DiskFull
 from curvefm.progress import Cancelled
+from curvefm.records.webhooks import DEFAULT_LOG_SIZE
 from curvefm.workers.context import JobContext, embedded_job, progress_fraction
 from curvefm.workers.interface import (
     ENDED_STATES,
@@ -66,8 +67,9 @@ class EmbeddedQueue(JobQueue):
         keep_ended_s: float = KEEP_ENDED_S,
         sizing: JobSizing = DEFAULT_SIZING,
         memory_budget: int | None = None,
+        webhook_log_size: int = DEFAULT_LOG_SIZE,
     ):
-        self.records = DbJobRecords(data_dir)
+        self.records = DbJobRecords(data_dir, webhook_log_size=webhook_log_size)
         self.sizing = sizing
         self.memory_budget = memory_budget
         self.keep_ended_s = keep_ended_s

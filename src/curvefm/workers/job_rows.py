@@ -26,6 +26,7 @@ from sqlalchemy.exc import SQLAlchemyError
 from curvefm.records.common import Page, Viewer
 from curvefm.records.engine import Database, shared_database
 from curvefm.records.jobs import JobRow, Jobs
+from curvefm.records.webhooks import DEFAULT_LOG_SIZE
 from curvefm.workers.interface import Admission, JobFailure, JobInfo, StoredJob
 
 _INFO = [f.name for f in fields(JobInfo)]
@@ -36,11 +37,17 @@ log = logging.getLogger("curvefm.workers")
 
 class DbJobRecords:
     """The job records of a data directory (its database: ``database``, else the directory's, see
-    :func:`curvefm.records.database_url`)."""
+    :func:`curvefm.records.database_url`); a job's end that ends a run keeps each webhook's newest
+    ``webhook_log_size`` deliveries."""
 
-    def __init__(self, data_dir: str | os.PathLike | None = None, database: Database | None = None):
+    def __init__(
+        self,
+        data_dir: str | os.PathLike | None = None,
+        database: Database | None = None,
+        webhook_log_size: int = DEFAULT_LOG_SIZE,
+    ):
         self.db = database or shared_database(data_dir)
-        self.rows = Jobs(self.db)
+        self.rows = Jobs(self.db, webhook_log_size)
         self.results = Path(data_dir) / "results" if data_dir is not None else None
 
     def create(self, stored: StoredJob, conn: Connection | None = None) -> None:
@@ -116,10 +123,10 @@ def folder_bytes(folder: Path) -> int:
     return sum(path.stat().st_size for path in folder.rglob("*") if path.is_file())
 
 
-def records_of(job_kwargs: dict) -> DbJobRecords | None:
+def records_of(job_kwargs: dict, webhook_log_size: int = DEFAULT_LOG_SIZE) -> DbJobRecords | None:
     """The records of a job's data directory (every job function takes ``data_dir``), as a worker finds them."""
     data_dir = job_kwargs.get("data_dir")
-    return DbJobRecords(data_dir) if data_dir else None
+    return DbJobRecords(data_dir, webhook_log_size=webhook_log_size) if data_dir else None
 
 
 def note_unrecorded(job_id: str, state: str, exc: Exception) -> None:

@@ -8,6 +8,8 @@ and message as data in ``job.meta["failure"]``, never read back from traceback t
 are handled by :mod:`curvefm.workers.reaper`. While Redis does not answer, every operation raises
 :class:`~curvefm.errors.Unavailable`. Each job's RQ timeout is the time limit it states
 (:mod:`curvefm.workers.sizing`), and its ``meta["demand"]`` what it states, which its worker checks against its budget.
+Its ``meta["webhook_log_size"]`` is the API's ``CURVEFM_WEBHOOK_LOG_SIZE``, which the worker that records the end of
+a run's last job keeps the webhooks' delivery logs to.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ from rq.timeouts import JobTimeoutException
 from rq.utils import now
 
 from curvefm.errors import NotFound, ResourceLimit, Unavailable
+from curvefm.records.webhooks import DEFAULT_LOG_SIZE
 from curvefm.workers.connection import SERIALIZER, UNREACHABLE, connect
 from curvefm.workers.interface import (
     ENDED_STATES,
@@ -134,10 +137,12 @@ class RQQueue(JobQueue):
         retries: int = 1,
         keep_ended_s: float = KEEP_ENDED_S,
         sizing: JobSizing = DEFAULT_SIZING,
+        webhook_log_size: int = DEFAULT_LOG_SIZE,
     ):
         self.connection = connect(redis_url)
         self.sizing = sizing
-        self.records = DbJobRecords(data_dir)
+        self.records = DbJobRecords(data_dir, webhook_log_size=webhook_log_size)
+        self.webhook_log_size = webhook_log_size
         self.retries = retries
         self.keep_ended_s = max(1, round(keep_ended_s))  # RQ's TTLs are whole seconds
         self.queues = {
@@ -233,7 +238,14 @@ class RQQueue(JobQueue):
                 result_ttl=self.keep_ended_s,
                 failure_ttl=self.keep_ended_s,
                 retry=Retry(max=self.retries) if self.retries > 0 else None,
-                meta={"kind": kind, "owner": info.owner, "progress": 0.0, "message": "queued", "demand": asdict(need)},
+                meta={
+                    "kind": kind,
+                    "owner": info.owner,
+                    "progress": 0.0,
+                    "message": "queued",
+                    "demand": asdict(need),
+                    "webhook_log_size": self.webhook_log_size,
+                },
                 description=f"curvefm {kind}",
                 on_success=Callback(record_success),
                 on_failure=Callback(record_failure),
@@ -357,7 +369,7 @@ def record_stopped(job: Job, connection: Redis) -> None:
 
 
 def _update_record(job: Job, **changes) -> None:
-    records = records_of(job.kwargs)
+    records = records_of(job.kwargs, job.meta.get("webhook_log_size", DEFAULT_LOG_SIZE))
     if records is None:
         return
     try:
