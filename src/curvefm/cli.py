@@ -1,7 +1,8 @@
 """The ``curvefm`` command line.
 
-``serve`` and ``worker`` start the service and the queue workers; they import ``curvefm.service`` and
-``curvefm.workers`` inside the command, so the library itself never depends on them.
+``serve`` and ``worker`` start the service and the queue workers; they, and ``collection export`` (for the
+service's agreement report), import ``curvefm.service`` and ``curvefm.workers`` inside the command, so the library
+itself never depends on them.
 """
 
 from __future__ import annotations
