@@ -21,7 +21,8 @@ that of all the unassisted curves.
 
 ``--timing``: instead, the time of one suggestion (the round-trip drift and :func:`curvefm.pointwise.suggest_curve`,
 as ``GET /sessions/{id}/suggestion`` runs them) on FAUST 000 -> 011 subdivided once (27,554 vertices), from no
-curve (zero maps) and from the 10 unassisted curves' maps; the median of ``--repeats`` runs.
+curve (zero maps) and from the 10 unassisted curves' maps, and (``*_paths``) the time of tracing the suggested
+curve on both shapes, as ``?paths=true`` adds it; the medians of ``--repeats`` runs.
 
     python -m benchmarks.bench_suggestions [--curves 10] [--tolerance 0.03] [--pairs cat_lion faust_000_011]
     python -m benchmarks.bench_suggestions --timing
@@ -45,6 +46,7 @@ from curvefm.geometry import Mesh, geodesic_distances, load_mesh, shortest_path
 from curvefm.matching import MatchResult, match, pair_with_basis_size
 from curvefm.pointwise import suggest_curve
 from curvefm.runtime import limit_blas_threads
+from curvefm.session.curves import trace_curve
 from curvefm.spectral import ShapePair
 from curvefm.store import Store
 
@@ -54,6 +56,7 @@ PAIRS = {
     "faust_060_071": ("faust/tr_reg_060.off", "faust/tr_reg_071.off"),  # held out: no rule is tuned on it
 }
 SUITE = ["cat_lion", "faust_000_011"]
+DEFAULT_TRACER = "geodesic"  # a new session's
 Paths = list[tuple[np.ndarray, np.ndarray]]
 
 
@@ -86,14 +89,31 @@ class Person:
         self.mesh_M, self.mesh_N = meshes
         self.partner = dict(zip(truth.ids_X.tolist(), truth.ids_Y.tolist(), strict=True))
         self.known = np.fromiter(self.partner, dtype=np.int64)
+        self.partners = np.array([self.partner[v] for v in self.known.tolist()], dtype=np.int64)
         self.tolerance = tolerance * np.sqrt(self.mesh_N.area)
 
-    def known_near(self, vertex: int) -> int:
-        """The source vertex with ground truth nearest to ``vertex`` (itself under a dense truth)."""
-        if vertex in self.partner:
+    def source_ends(self, suggested: tuple[int, int]) -> list[int]:
+        """The suggested source ends snapped to vertices with ground truth, the end never where the start is nor
+        where its true partner is the start's: two ends on one vertex, on either shape, would be a curve of no
+        length."""
+        start = self.known_near(suggested[0], self.known)
+        others = (self.known != start) & (self.partners != self.partner[start])
+        return [start, self.known_near(suggested[1], self.known[others])]
+
+    def known_near(self, vertex: int, known: np.ndarray) -> int:
+        """The vertex of ``known`` nearest to ``vertex`` (itself when it is one)."""
+        if vertex in known:
             return vertex
-        offsets = self.mesh_M.vertices[self.known] - self.mesh_M.vertices[vertex]
-        return int(self.known[np.argmin(np.linalg.norm(offsets, axis=1))])
+        offsets = self.mesh_M.vertices[known] - self.mesh_M.vertices[vertex]
+        return int(known[np.argmin(np.linalg.norm(offsets, axis=1))])
+
+    def target_ends(self, sources: list[int], suggested: tuple[int, int]) -> list[tuple[int, bool]]:
+        """The target ends the person settles on, and whether each was moved; suggested ends that would both lie
+        on one vertex are both put at their true partners (which differ: see source_ends)."""
+        settled = [self.target_end(v, t) for v, t in zip(sources, suggested, strict=True)]
+        if settled[0][0] != settled[1][0]:
+            return settled
+        return [(self.partner[v], self.partner[v] != t) for v, t in zip(sources, suggested, strict=True)]
 
     def target_end(self, source: int, suggested: int) -> tuple[int, bool]:
         """The target end the person settles on for ``source``, and whether they moved the suggested one."""
@@ -112,8 +132,8 @@ def suggested(meshes: tuple[Mesh, Mesh], truth: GroundTruth, count: int, toleran
     clicks = 0
     for n in range(1, count + 1):
         source, target = next_curve
-        ends_M = [person.known_near(v) for v in source]
-        settled = [person.target_end(v, t) for v, t in zip(ends_M, target, strict=True)]
+        ends_M = person.source_ends(source)
+        settled = person.target_ends(ends_M, target)
         clicks += 1 + sum(moved for _, moved in settled)
         path_N = shortest_path(mesh_N.edge_graph, settled[0][0], settled[1][0])
         curves.append((shortest_path(mesh_M.edge_graph, *ends_M), path_N))
@@ -157,13 +177,18 @@ def suggestion_seconds(curves: int, repeats: int, store: Store) -> dict[str, flo
     no_maps = FunctionalMaps(np.zeros_like(result.fmaps.C_MN), np.zeros_like(result.fmaps.C_NM))
     timings = {}
     for name, fmaps, given in (("no_curve", no_maps, []), (f"{curves}_curves", result.fmaps, list(result.paths))):
-        seconds = []
+        seconds, traced = [], []
         for _ in range(repeats):
             start = time.perf_counter()
-            suggestion(result.pair, fmaps, given)
+            ends = suggestion(result.pair, fmaps, given)
             seconds.append(time.perf_counter() - start)
+            start = time.perf_counter()
+            for mesh, (a, b) in zip(meshes, ends, strict=True):
+                trace_curve(mesh, waypoints=mesh.file_ids[[a, b]].tolist(), tracer=DEFAULT_TRACER)
+            traced.append(time.perf_counter() - start)
         timings[name] = round(float(np.median(seconds)), 4)
-    return {"vertices": meshes[0].n_vertices} | timings
+        timings[f"{name}_paths"] = round(float(np.median(traced)), 4)
+    return {"vertices": meshes[0].n_vertices, "tracer": DEFAULT_TRACER} | timings
 
 
 def main() -> None:

@@ -84,11 +84,12 @@ def test_removing_a_curve_changes_the_map(client, shape_ids):
 def test_a_suggested_curve_is_added_as_it_came(client, shape_ids):
     session = client.session(*shape_ids, k=K)
     session.add_curve(*CURVES[0])
-    suggested = session.suggestion()
+    suggested = session.suggestion(paths=True)
     assert suggested["revision"] == session.refresh()["revision"] and len(set(suggested["source"])) == 2
     curve = session.add_curve(suggested["source"], suggested["target"])
     assert [curve.path_source[0], curve.path_source[-1]] == suggested["source"]
     assert [curve.path_target[0], curve.path_target[-1]] == suggested["target"]
+    assert list(curve.path_source) == suggested["path_source"] and list(curve.path_target) == suggested["path_target"]
 
 
 def test_error_answers_raise_the_projects_exceptions_with_the_servers_message(client, shape_ids):

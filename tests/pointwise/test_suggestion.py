@@ -80,3 +80,16 @@ def test_the_first_curve_does_not_join_mirror_twins_on_faust(shared_data):
     scale = np.sqrt(mesh.area)
     assert apart[twin_of_start] / scale > 0.5  # a foot and the other foot would be a few edges apart
     assert apart[start] / scale > 0.5  # and the curve is long: it spans the shape
+
+
+def test_zero_maps_and_no_drift_never_give_a_curve_of_no_length(pair):
+    """Zero maps send every vertex to one target vertex, and no drift leaves nothing to maximise: the ends must
+    still be two vertices on each shape (the benchmark's simulated person crashed on a curve of one vertex)."""
+    zero = np.zeros((K, K))
+    for drift in (np.zeros(pair.mesh_M.n_vertices), np.ones(pair.mesh_M.n_vertices)):
+        found = suggest_curve(pair, zero, zero, drift, np.zeros(0, dtype=np.int64))
+        assert found.source[0] != found.source[1]
+        assert found.target[0] != found.target[1]
+        # the moved image is the farthest from the other, not merely next to it
+        apart = dijkstra(pair.mesh_N.edge_graph, indices=found.target[0])
+        assert apart[found.target[1]] == pytest.approx(apart.max())

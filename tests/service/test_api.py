@@ -194,6 +194,40 @@ def test_a_suggested_curve_lies_away_from_the_curves_and_adds_as_a_curve(server)
     assert following["revision"] > suggested["revision"] and following["source"] != suggested["source"]
 
 
+def on_edges(mesh, file_ids: list[int]) -> bool:
+    """Whether consecutive vertices of a path are joined by an edge of the mesh."""
+    path = mesh.internal_ids(file_ids)
+    return len(path) > 1 and bool(np.all(mesh.edge_graph[path[:-1], path[1:]] > 0))
+
+
+def test_the_suggested_curve_is_traced_between_its_ends_and_again_when_an_end_moves(server):
+    url = f"/sessions/{server.session}"
+    server.client.post(f"{url}/curves", json={"source": [19, 432], "target": [19, 432]}).raise_for_status()
+    shapes = dict(zip(("source", "target"), demo_shapes(), strict=True))
+    plain = server.client.get(f"{url}/suggestion").raise_for_status().json()
+    assert plain["path_source"] is None and plain["path_target"] is None  # traced only when asked
+    suggested = server.client.get(f"{url}/suggestion", params={"paths": "true"}).raise_for_status().json()
+    for side, mesh in shapes.items():
+        path = suggested[f"path_{side}"]
+        assert [path[0], path[-1]] == suggested[side] and on_edges(mesh, path)
+    moved = {"source": f"{suggested['source'][0]},1000", "target": f"{suggested['target'][0]},1000"}
+    again = server.client.get(f"{url}/suggestion", params=moved).raise_for_status().json()
+    for side, mesh in shapes.items():
+        path = again[f"path_{side}"]
+        assert again[side] == [suggested[side][0], 1000] and path[-1] == 1000 and on_edges(mesh, path)
+    added = server.client.post(f"{url}/curves", json={"source": again["source"], "target": again["target"]})
+    curve = added.raise_for_status().json()["curve"]
+    assert curve["path_source"] == again["path_source"] and curve["path_target"] == again["path_target"]
+    for params, status in (
+        ({"source": "5,5", "target": "1,2"}, 409),  # both ends on one vertex: no curve
+        ({"source": "1,2"}, 400),  # the target's ends missing
+        ({"source": "1,2,3", "target": "1,2"}, 422),
+        ({"source": "1,99999999", "target": "1,2"}, 409),  # no such vertex
+    ):
+        refused = server.client.get(f"{url}/suggestion", params=params)
+        assert refused.status_code == status and "detail" in refused.json()
+
+
 def test_a_deleted_curve_comes_back_under_its_id_at_its_place(server):
     url = f"/sessions/{server.session}/curves"
     ids = [

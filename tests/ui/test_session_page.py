@@ -233,15 +233,26 @@ def test_the_suggested_curve_is_shown_and_accepted_as_a_curve_with_its_ends(page
             shown[side] == served[side] for side in ("source", "target")
         )
 
+    def line(side: str) -> dict | None:
+        return page.evaluate("(side) => window.curvefm.suggestionLine(side)", side)
+
+    def drawn_between_ends() -> bool:
+        ends = shown_suggestion()
+        return all((line(side) or {}).get("ends") == ends[side] for side in ("source", "target"))
+
     wait_until(settled, "the page shows the suggestion the service makes now")
     assert page.is_enabled("#accept-suggestion")
+    wait_until(drawn_between_ends, "the suggested curve is drawn between its ends on both shapes")
+    assert all(line(side)["points"] > 2 for side in ("source", "target"))  # a path, not a segment between the ends
     screenshot(page, "13-suggested-curve")
-    # move an end the camera shows: click it, then click where it belongs
+    # move an end the camera shows: click it, then click where it belongs; the curve is traced again to it
     side, index = pick_suggested_end(page, shown_suggestion())
     elsewhere = next(v for v in pickable_vertices(page) if v["id"] not in shown_suggestion()[side])
     page.mouse.click(*elsewhere[side])
     suggested = shown_suggestion()
     assert suggested[side][index] == elsewhere["id"]
+    wait_until(lambda: (line(side) or {}).get("ends", [None, None])[index] == elsewhere["id"], "the line follows")
+    assert drawn_between_ends() and line(side)["points"] > 1
     before = session(demo)
     samples = page.evaluate("window.curvefmStats.samples.length")
     page.keyboard.press("a")

@@ -363,11 +363,12 @@ class Session:
         50 x 50 until curves totalling 6.2 sqrt(area)") and ``reason``."""
         return self.client.json("GET", f"{self.path}/solve")
 
-    def suggestion(self) -> dict[str, Any]:
+    def suggestion(self, paths: bool = False) -> dict[str, Any]:
         """The next curve to draw: ``source`` (its start and end where the maps are least certain) and ``target``
-        (their images through the maps), file ids, with the ``revision`` whose maps made it and ``prior_pending``.
+        (their images through the maps), file ids, with the ``revision`` whose maps made it and ``prior_pending``;
+        ``paths``: with the curve traced on both shapes (``path_source``, ``path_target``).
         ``add_curve(s["source"], s["target"])`` adds it; move an end first where its image is wrong."""
-        return self.client.json("GET", f"{self.path}/suggestion")
+        return self.client.json("GET", f"{self.path}/suggestion", params={"paths": "true"} if paths else None)
 
     def refine(self, converter: str = "nearest-neighbor", **params: Any) -> RefineJob:
         """Start pointwise maps both ways from the curves as they are now (a job; ``.wait()`` answers them)."""

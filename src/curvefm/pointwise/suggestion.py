@@ -7,7 +7,11 @@ from the geodesic distance to what is already given, like a farthest-point sampl
 * the start maximises ``sqrt(drift(v)) * d(v)`` with ``d`` the distance to the nearest vertex of any curve (1
   everywhere when there is none);
 * the end maximises ``sqrt(drift(v)) * min(d(v), d_start(v))``, so it lies far from the curves and from the start
-  too, and the path joining them crosses unconstrained surface.
+  too, and the path joining them crosses unconstrained surface (where that product is 0 everywhere, no drift or
+  curves everywhere, the end is the point farthest from the start).
+
+Neither shape ever gets a curve of no length: the ends differ on the source, and where the maps send both to one
+target vertex the second image is moved away (:func:`_apart`).
 
 The square root was chosen by measurement on FAUST 000 -> 011 and cat -> lion against the drift alone and the
 distance alone (benchmarks/bench_suggestions.py; the figures and how far they fall short of issue 35's target are in
@@ -56,11 +60,21 @@ def suggest_curve(
     mesh_M, weight = pair.mesh_M, np.sqrt(np.maximum(drift_M, 0.0))
     from_curves = _distances(mesh_M, curves_M) if len(curves_M) else np.ones(mesh_M.n_vertices)
     start = int(np.argmax(weight * from_curves))
-    from_both = np.minimum(from_curves, _distances(mesh_M, np.array([start])))
-    end = int(np.argmax(weight * from_both * (1.0 if len(curves_M) else _unlike(pair.basis_M, start))))
+    from_start = _distances(mesh_M, np.array([start]))
+    score = weight * np.minimum(from_curves, from_start) * (1.0 if len(curves_M) else _unlike(pair.basis_M, start))
+    end = int(np.argmax(score if score.max() > 0 else from_start))  # never the start: a curve of no length
     rows = np.array([start, end])
     images = pointwise_from_both(C_NM, C_MN, pair.basis_N, pair.basis_M, rows=rows)
-    return SuggestedCurve(source=(start, end), target=(int(images[0]), int(images[1])))
+    return SuggestedCurve(source=(start, end), target=_apart(pair.mesh_N, int(images[0]), int(images[1])))
+
+
+def _apart(mesh: Mesh, first: int, second: int) -> tuple[int, int]:
+    """Two images as the ends of a curve: where the maps send both ends to one vertex (zero maps, as a new
+    session's, send every vertex to one), a curve of no length would be proposed, so the second end goes to the
+    vertex farthest from the first instead (an image as meaningless as the map's, which the person moves)."""
+    if first != second:
+        return first, second
+    return first, int(np.argmax(_distances(mesh, np.array([first]))))
 
 
 def _unlike(basis: Basis, vertex: int) -> np.ndarray:

@@ -444,15 +444,39 @@ def get_quality(
     return Response(quality.drift.astype("<f4").tobytes(), media_type="application/octet-stream", headers=headers)
 
 
+ENDS = r"^[0-9]{1,9},[0-9]{1,9}$"  # nine digits: below MAX_VERTEX_ID, so a spec of them is valid
+
+
 @router.get("/sessions/{session_id}/suggestion", response_model=CurveSuggestion, responses=ERRORS)
-def get_suggestion(session_id: str, services: ServicesDep, user: CurrentUser) -> CurveSuggestion:
+def get_suggestion(
+    session_id: str,
+    services: ServicesDep,
+    user: CurrentUser,
+    paths: Annotated[
+        bool, Query(description="true: with the curve traced between the ends (path_source, path_target)")
+    ] = False,
+    source: Annotated[
+        str | None, Query(pattern=ENDS, description="start,end on the source (file ids) as the person moved them")
+    ] = None,
+    target: Annotated[str | None, Query(pattern=ENDS, description="start,end on the target, likewise")] = None,
+) -> CurveSuggestion:
     """The next curve to draw: its start and end on the source where the live maps are least certain (large
     round-trip drift, far along the surface from every curve and from each other), and their images on the target
-    through the maps, as file ids, with the ``revision`` whose maps made it. The web UI draws it faintly after each
-    edit; adding it is an ordinary ``POST .../curves`` with these ends (moved first where the images are wrong).
-    Read apart from the edit, so that no edit waits for it; ``prior_pending: true``: ask again shortly."""
+    through the maps, as file ids, with the ``revision`` whose maps made it. Its ends are never one vertex on either
+    shape. ``paths=true``: with the curve itself on both shapes (``path_source``, ``path_target``, file ids, start
+    to end), traced by the session's tracer exactly as adding the curve would trace it. ``source`` and ``target``
+    (both or neither): ends the person moved, kept as given and traced (409 when both ends are one vertex). The web
+    UI draws it faintly after each edit; adding it is an ordinary ``POST .../curves`` with these ends. Read apart
+    from the edit, so that no edit waits for it; ``prior_pending: true``: ask again shortly."""
     session_for(services, user, session_id, "read")
-    return services.sessions.suggestion(session_id)
+    if (source is None) != (target is None):
+        raise InvalidInput("give the moved ends on both shapes (source and target) or on neither")
+    ends = None if source is None or target is None else (_parse_ends(source), _parse_ends(target))
+    return services.sessions.suggestion(session_id, paths=paths, ends=ends)
+
+
+def _parse_ends(text: str) -> list[int]:
+    return [int(part) for part in text.split(",")]
 
 
 EXPORT_TYPES = {

@@ -25,7 +25,7 @@ from pydantic import BaseModel, Field
 
 from curvefm import registry
 from curvefm.errors import Conflict, NotFound, RevisionMismatch, StaleRevision, shown
-from curvefm.fmap import EffectiveSolve, FunctionTransfer
+from curvefm.fmap import EffectiveSolve, FunctionTransfer, RoundTripQuality
 from curvefm.geometry import DisplayMesh, Mesh, texture_coordinates
 from curvefm.pointwise import suggest_curve
 from curvefm.registry import Plugin
@@ -122,6 +122,12 @@ class CurveSuggestion(BaseModel):
     prior_pending: bool = Field(
         description="the maps will still improve once the landmark prior for this revision lands: ask again shortly"
     )
+    path_source: list[int] | None = Field(
+        None,
+        description="with paths=true: the curve on the source, file ids from start to end, traced by the session's "
+        "tracer as adding it would trace it",
+    )
+    path_target: list[int] | None = Field(None, description="with paths=true: the curve on the target, likewise")
 
 
 @dataclass(frozen=True)
@@ -366,22 +372,37 @@ class SessionEditor:
             prior_pending=prior_pending,
         )
 
-    def suggestion(self, session_id: str) -> CurveSuggestion:
-        """Where one more curve helps most, from the live maps (both solved now if an edit deferred them)."""
+    def suggestion(
+        self, session_id: str, paths: bool = False, ends: tuple[list[int], list[int]] | None = None
+    ) -> CurveSuggestion:
+        """Where one more curve helps most, from the live maps (both solved now if an edit deferred them).
+        ``ends``: (source, target) file ids of ends the person moved, kept instead of suggesting new ones (and
+        traced). ``paths``: with the curve traced between the ends as adding it traces it (once, no lock held)."""
         with self.live.using(session_id) as live:
             prior_pending = live.solver.prior_pending  # first: a prior landing meanwhile costs one more read
             C_MN, C_NM, record, measure = live.solver.C_MN, live.solver.C_NM, live.record, live.round_trip
-        curves_M, curves_N = _curve_vertices(live.pair, record)
-        drift = measure.measure(C_MN, C_NM, curves_M, curves_N)
-        found = suggest_curve(live.pair, C_MN, C_NM, drift.source, curves_M)
+        source, target = ends or self._suggested_ends(live.pair, C_MN, C_NM, measure, record)
+        traced = self._trace(record, CurveSpec(source=source, target=target)) if paths or ends else None
         return CurveSuggestion(
             revision=record.revision,
-            source=live.pair.mesh_M.file_ids[list(found.source)].tolist(),
-            target=live.pair.mesh_N.file_ids[list(found.target)].tolist(),
+            source=source,
+            target=target,
             prior_pending=prior_pending,
+            path_source=None if traced is None else traced.path_source.tolist(),
+            path_target=None if traced is None else traced.path_target.tolist(),
         )
 
     # -- internals ----------------------------------------------------------------------------------------
+    @staticmethod
+    def _suggested_ends(
+        pair: ShapePair, C_MN: np.ndarray, C_NM: np.ndarray, measure: RoundTripQuality, record: SessionRecord
+    ) -> tuple[list[int], list[int]]:
+        """The suggested ends, (source, target) file ids."""
+        curves_M, curves_N = _curve_vertices(pair, record)
+        drift = measure.measure(C_MN, C_NM, curves_M, curves_N)
+        found = suggest_curve(pair, C_MN, C_NM, drift.source, curves_M)
+        return pair.mesh_M.file_ids[list(found.source)].tolist(), pair.mesh_N.file_ids[list(found.target)].tolist()
+
     def _display_rows(self, live: LiveSession) -> np.ndarray | None:
         """The target's basis at its display vertices (float32, made once per session: reading these rows alone
         is what makes a display transfer cheap), or ``None`` when the target is drawn whole."""

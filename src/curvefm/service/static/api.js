@@ -163,8 +163,13 @@ export const api = {
     };
   },
   /** The next curve to draw (see GET /sessions/{id}/suggestion): { revision, source: [start, end], target:
-   * [their images], prior_pending }, file ids. */
-  suggestion: (id) => request("GET", `/sessions/${enc(id)}/suggestion`),
+   * [their images], prior_pending, path_source, path_target (the curve traced on each shape) }, file ids. With
+   * ``ends`` ({ source, target } as the user moved them): those ends, traced again. */
+  suggestion: (id, ends = null) => {
+    const query = new URLSearchParams({ paths: "true" });
+    if (ends) for (const side of ["source", "target"]) query.set(side, ends[side].join(","));
+    return request("GET", `/sessions/${enc(id)}/suggestion?${query}`);
+  },
   /** The live maps' round trip per drawn target vertex (see GET /sessions/{id}/quality): { drift: Float32Array,
    * score, worstTarget, worstSource (file ids clear of the curves), revision, priorPending (these figures will still
    * change once the landmark prior for this revision lands) }. */

@@ -162,6 +162,25 @@ function installTestHooks() {
       const { suggestion } = state;
       return suggestion && { revision: suggestion.revision, source: [...suggestion.source], target: [...suggestion.target] };
     },
+    /** The suggested curve's dashed line on one side as drawn: { points: how many, ends: the file ids of the drawn
+     * vertices nearest its first and last points }, or null when none is drawn. */
+    suggestionLine(side) {
+      const line = viewports[side].suggestedLine;
+      if (!line) return null;
+      const { vertices, fileIds, nVertices } = state.shapes[side].mesh;
+      const drawn = line.geometry.attributes.position;
+      const nearest = (i) => {
+        const at = [drawn.getX(i), drawn.getY(i), drawn.getZ(i)];
+        let best = 0;
+        let bestDistance = Infinity;
+        for (let v = 0; v < nVertices; v++) {
+          const distance = Math.hypot(...at.map((x, k) => x - vertices[3 * v + k]));
+          if (distance < bestDistance) [best, bestDistance] = [v, distance];
+        }
+        return fileIds[best];
+      };
+      return { points: drawn.count, ends: [nearest(0), nearest(drawn.count - 1)] };
+    },
     /** How many curve tubes one side draws. */
     tubeCount(side) {
       return viewports[side].curveTubes.size;

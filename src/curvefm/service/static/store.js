@@ -317,10 +317,16 @@ export function setMoving(moving) {
   state.moving = moving;
 }
 
-/** Move an end of the suggestion to ``fileId``. */
+/** Move an end of the suggestion to ``fileId``; its traced paths no longer join its ends until traced again. */
 export function moveSuggestedEnd(side, index, fileId) {
   state.suggestion[side][index] = fileId;
+  state.suggestion.path_source = state.suggestion.path_target = null;
   state.moving = null;
+}
+
+/** The paths traced between the suggestion's ends as they are now. */
+export function setSuggestedPaths(traced) {
+  Object.assign(state.suggestion, { path_source: traced.path_source, path_target: traced.path_target });
 }
 
 export function setShowQuality(show) {

@@ -1,9 +1,20 @@
 // The suggested next curve: after each edit the service proposes where one more curve helps most (its ends on the
 // source where the map is least certain, and where the map sends them on the target). Its ends are drawn as
-// faint grey balls on both shapes; "Accept suggestion" (or the A key) adds it as a curve (controllers/curves.js). To move
-// an end first, click near it (within SNAP of the shape's size), then click where it belongs on the same shape.
+// faint grey balls on both shapes, and the curve between them, traced by the session's tracer as adding it traces it,
+// as a faint dashed line; "Accept suggestion" (or the A key) adds it as a curve (controllers/curves.js). To move an
+// end first, click near it (within SNAP of the shape's size), then click where it belongs on the same shape: the
+// service traces the curve between the ends as moved, and the line follows.
 import { api } from "../api.js";
-import { mayEdit, moveSuggestedEnd, pendingEmpty, setMoving, setShowSuggestion, setSuggestion, state } from "../store.js";
+import {
+  mayEdit,
+  moveSuggestedEnd,
+  pendingEmpty,
+  setMoving,
+  setShowSuggestion,
+  setSuggestedPaths,
+  setSuggestion,
+  state,
+} from "../store.js";
 import { $ } from "../views/dom.js";
 import { report } from "../views/messages.js";
 import { SIDES, viewports } from "../views/viewports.js";
@@ -20,8 +31,7 @@ export async function refreshSuggestion() {
   clearTimeout(nextRead);
   try {
     const suggestion = await api.suggestion(session.id);
-    const { source, target } = state.shapes; // ends a display copy does not draw are shown at its nearest vertex
-    await Promise.all([source.points.load(suggestion.source), target.points.load(suggestion.target)]);
+    await placeSuggestion(suggestion);
     if (state.session !== session || suggestion.revision !== session.revision) return;
     if (!state.moving) setSuggestion(suggestion); // an end being moved keeps the suggestion it belongs to
     showSuggestion();
@@ -31,12 +41,35 @@ export async function refreshSuggestion() {
   }
 }
 
-/** Draw the suggestion's ends on both shapes (none while it is hidden or there is none) and enable its button. */
+/** Place the suggestion's ends and paths on shapes drawn as display copies (points.js). */
+function placeSuggestion(suggestion) {
+  return Promise.all(SIDES.map((side) => state.shapes[side].points.load([...suggestion[side], ...(suggestion[`path_${side}`] ?? [])])));
+}
+
+/** Trace the suggested curve again between its ends as the user moved them; an answer for ends moved since, or
+ * for a suggestion replaced since, is dropped. */
+async function retraceSuggestion() {
+  const { session, suggestion } = state;
+  try {
+    const traced = await api.suggestion(session.id, { source: suggestion.source, target: suggestion.target });
+    await placeSuggestion(traced);
+    const same = SIDES.every((side) => traced[side].join() === suggestion[side].join());
+    if (state.suggestion !== suggestion || !same) return;
+    setSuggestedPaths(traced);
+    showSuggestion();
+  } catch (error) {
+    if (error.kind !== "network") report(error, "The suggested curve could not be traced between these ends");
+  }
+}
+
+/** Draw the suggestion on both shapes (none while it is hidden or there is none) and enable its button. */
 export function showSuggestion() {
   const { suggestion, showSuggestion: shown, moving } = state;
   for (const side of SIDES) {
-    const rows = shown && suggestion ? [...state.shapes[side].points.rows(suggestion[side])] : [];
-    viewports[side].setSuggestion(rows, moving?.side === side ? moving.index : -1);
+    const { points } = state.shapes[side] ?? {};
+    const rows = shown && suggestion ? [...points.rows(suggestion[side])] : [];
+    const path = shown && suggestion?.[`path_${side}`];
+    viewports[side].setSuggestion(rows, moving?.side === side ? moving.index : -1, path && points.has(path) ? points.path(path) : null);
   }
   $("accept-suggestion").disabled = !(shown && suggestion && state.ready && mayEdit());
   if (moving) $("hint").textContent = `Click where this end of the suggested curve belongs on the ${moving.side}.`;
@@ -58,6 +91,7 @@ export function clickSuggestion(side, vertex) {
   if (moving?.side === side) {
     moveSuggestedEnd(side, moving.index, mesh.fileIds[vertex]);
     showSuggestion();
+    retraceSuggestion();
     return true;
   }
   const rows = viewports[side].suggestedRows;

@@ -56,9 +56,10 @@ export class Viewport {
     this.commentGroup = new THREE.Group(); // review comments' markers (setCommentMarkers)
     this.surface.add(this.commentGroup);
     this.commentMarkers = [];
-    this.suggested = new THREE.Group(); // the suggested curve's ends: faint balls (setSuggestion)
+    this.suggested = new THREE.Group(); // the suggested curve: faint balls at its ends, a dashed line (setSuggestion)
     this.surface.add(this.suggested);
     this.suggestedRows = [];
+    this.suggestedLine = null;
     // a translucent ball over a region of the surface (the weakest region of the maps), scaled in setMesh
     const ball = new THREE.MeshBasicMaterial({ color: 0x00e5ff, transparent: true, opacity: 0.45, depthWrite: false });
     this.highlight = new THREE.Mesh(new THREE.SphereGeometry(1, 24, 16), ball);
@@ -267,14 +268,19 @@ export class Viewport {
     this.frames.request(this);
   }
 
-  /** The suggested curve's ends (internal ids, -1: not placed yet) as faint grey balls; the one at ``moving``
-   * (an index, or -1) yellow: the user's next click places it. */
-  setSuggestion(rows, moving = -1) {
-    for (const ball of [...this.suggested.children]) {
-      this.suggested.remove(ball);
-      ball.material.dispose();
+  /** The suggested curve: its ends (internal ids, -1: not placed yet) as faint grey balls, the one at ``moving``
+   * (an index, or -1) yellow: the user's next click places it; and its ``path`` (packed xyz, or null while it is
+   * traced) as a faint dashed line. The surface's polygon offset keeps the line, which runs along its edges, in
+   * front of it. */
+  setSuggestion(rows, moving = -1, path = null) {
+    for (const object of [...this.suggested.children]) {
+      this.suggested.remove(object);
+      object.material.dispose();
+      if (object === this.suggestedLine) object.geometry.dispose();
     }
     this.suggestedRows = [...rows];
+    this.suggestedLine = path && path.length >= 6 ? this.dashedLine(path) : null;
+    if (this.suggestedLine) this.suggested.add(this.suggestedLine);
     const positions = this.mesh?.geometry.attributes.position;
     rows.forEach((vertex, index) => {
       if (vertex < 0 || !positions) return;
@@ -286,6 +292,16 @@ export class Viewport {
       this.suggested.add(ball);
     });
     this.frames.request(this);
+  }
+
+  dashedLine(path) {
+    const geometry = new THREE.BufferGeometry();
+    geometry.setAttribute("position", new THREE.BufferAttribute(path, 3));
+    const dash = 2 * this.tubeRadius;
+    const material = new THREE.LineDashedMaterial({ color: 0x3a4050, dashSize: dash, gapSize: dash, transparent: true, opacity: 0.7 });
+    const line = new THREE.Line(geometry, material);
+    line.computeLineDistances();
+    return line;
   }
 
   /** Ring a region: a translucent ball around ``vertex`` (internal id), or none (-1). */
