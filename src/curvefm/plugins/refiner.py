@@ -5,7 +5,7 @@ Every refiner does the same three things, written once here:
 1. **Start** (:meth:`IterativeRefiner.start`, a :class:`Start`; :meth:`SpectralRefiner.start` for ICP and
    ZoomOut): the vertices to iterate on (every vertex, or farthest-point samples on big shapes:
    :mod:`curvefm.pointwise.sampled`), the ``nearest-neighbor`` converter's maps on them
-   (:meth:`SpectralRefiner.initial`), bases with as many functions as the refiner works in, and the
+   (:func:`curvefm.pointwise.initial_maps`), bases with as many functions as the refiner works in, and the
    user's curves as pins (:class:`~curvefm.pointwise.CurvePins`).
 2. **Iterate** (:meth:`IterativeRefiner.iterate`): one step after another from the refiner's schedule until the
    schedule ends or a step says the maps have settled, reporting progress per step.
@@ -34,12 +34,10 @@ import numpy as np
 from pydantic import BaseModel
 
 from curvefm.fmap import FunctionalMaps
-from curvefm.plugins.converters import NearestNeighborParams, convert_nearest_neighbor
 from curvefm.plugins.refinement_params import SampledRefinementParams
 from curvefm.pointwise import (
     CurvePins,
     PointwiseMaps,
-    Search,
     VertexRows,
     bases_with,
     initial_maps,
@@ -188,19 +186,9 @@ class SpectralRefiner(IterativeRefiner[SP, Iterate]):
         progress(0.0, "choosing the vertices to iterate on")
         samples = refinement_samples(pair.mesh_M, pair.mesh_N, params.samples, params.dense_up_to)
         progress(0.5, "initial maps (nearest neighbours)")
-        maps = self.initial(pair, fmaps, params.search, samples)
+        maps = initial_maps(pair, fmaps, params.search, samples)
         bases = bases_with(pair, self.basis_size(params), scaled(progress, 0.5, 1.0))
         return Start(maps, CurvePins.from_curves(pair.mesh_M, pair.mesh_N, curves), samples, bases)
-
-    @staticmethod
-    def initial(
-        pair: ShapePair, fmaps: FunctionalMaps, search: Search, samples: tuple[np.ndarray, np.ndarray] | None
-    ) -> PointwiseMaps:
-        """The maps the refinement starts from: on every vertex the ``nearest-neighbor`` converter's (what the guard
-        compares with, orthogonal steps included), on samples its maps from both functional maps at once."""
-        if samples is None:
-            return convert_nearest_neighbor(pair, fmaps, NearestNeighborParams(search=search))
-        return initial_maps(pair, fmaps, search, samples)
 
     @abstractmethod
     def fit(self, p2p: np.ndarray, domain: VertexRows, image: VertexRows, step: Any, params: SP) -> np.ndarray:

@@ -79,6 +79,7 @@ from curvefm.pointwise import (
     closest_points,
     compare,
     geodesic_embedding,
+    initial_maps,
     measure,
     no_pins,
     unit_area,
@@ -298,7 +299,7 @@ class Rhm(IterativeRefiner[RhmParams, _Iterate]):
             if anchor is not None and not compare(measure(pair, maps, curves), measure(pair, anchor, curves)):
                 anchor = maps  # the guard (curvefm.matching.convert) would return ZoomOut's maps: anchor to those
         else:
-            maps = anchor or convert_nearest_neighbor(pair, fmaps, NearestNeighborParams())
+            maps = initial_maps(pair, fmaps)
         return RhmStart(maps, CurvePins.from_curves(pair.mesh_M, pair.mesh_N, curves), anchor=anchor)
 
     def begin(

@@ -80,8 +80,12 @@ def orthogonal_steps(
     """``p2p_NM`` after ``steps`` orthogonal steps at the functional map's own size (the ICP of Ovsjanikov et al.
     2012): fit the map of functions on M (``k_M``) to N that the pointwise map induces, with
     :data:`ORTHOGONAL_EXTRA` more functions on N where its basis has them, replace it by the nearest map with
-    orthonormal columns (an isometry's, on unit-area bases) and match by nearest neighbours again."""
+    orthonormal columns (an isometry's, on unit-area bases) and match by nearest neighbours again. None where N's
+    basis has no function beyond the map's: square steps drift (the curve energy's 120 x 120 map from 10 curves on
+    FAUST 000 -> 011 went from 0.0276 to 0.0335)."""
     k_image = min(k_N + ORTHOGONAL_EXTRA, basis_N.k)
+    if k_image <= k_N:
+        return p2p_NM
     for _ in range(steps):
         C = nearest_orthogonal(fmap_from_pointwise(p2p_NM, basis_M, basis_N, k_M, k_image))
         p2p_NM = nearest_neighbors(basis_M.evecs[:, :k_M] @ C.T, basis_N.evecs[:, :k_image], search)
