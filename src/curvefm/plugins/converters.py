@@ -13,6 +13,7 @@ from curvefm.plugins.refinement_params import SearchParams
 from curvefm.pointwise import (
     PointwiseMaps,
     edge_stretch,
+    orthogonal_steps,
     pointwise_from_both,
     pointwise_from_fmap,
     uses_approximate,
@@ -20,6 +21,9 @@ from curvefm.pointwise import (
 from curvefm.progress import Progress, no_progress
 from curvefm.registry import ConverterPlugin
 from curvefm.spectral import Basis, ShapePair
+
+# chosen in docs/decisions.md#orthogonal-steps-in-the-conversion
+ORTHOGONAL_STEPS = 3
 
 
 class NearestNeighborParams(SearchParams):
@@ -29,6 +33,14 @@ class NearestNeighborParams(SearchParams):
         "direction from its own map only (Ovsjanikov et al. 2012); 'auto': both candidates, and per direction the "
         "one whose images of the edges stretch least (no ground truth needed); 'both' where the search is "
         "approximate (big meshes), as a second candidate would double the conversion there",
+    )
+    orthogonal_steps: int = Field(
+        ORTHOGONAL_STEPS,
+        ge=0,
+        le=50,
+        description="orthogonal (ICP) steps at the functional map's own size after the nearest neighbours, each "
+        "direction: the map fitted to the pointwise map, made orthonormal, matched again; they sharpen the map the "
+        "curves determine without going beyond its frequencies. None where the search is approximate (big meshes)",
     )
 
 
@@ -62,7 +74,11 @@ def _one_direction(
         candidates.append(pointwise_from_both(C_forward, C_back, basis_to, basis_from, params.search))
     if embedding in ("auto", "single"):
         candidates.append(pointwise_from_fmap(C_forward, basis_to, basis_from, params.search))
-    return min(candidates, key=lambda p2p: edge_stretch(mesh_from, mesh_to, p2p))
+    p2p = min(candidates, key=lambda p2p: edge_stretch(mesh_from, mesh_to, p2p))
+    if uses_approximate(mesh_to.n_vertices, mesh_from.n_vertices):
+        return p2p
+    k_from, k_to = C_forward.shape
+    return orthogonal_steps(p2p, basis_to, basis_from, k_to, k_from, params.orthogonal_steps, params.search)
 
 
 NEAREST_NEIGHBOR = ConverterPlugin(

@@ -21,7 +21,7 @@ from pydantic import Field, model_validator
 
 from curvefm.plugins.refinement_params import SampledRefinementParams
 from curvefm.plugins.refiner import Iterate, SpectralRefiner, Start
-from curvefm.pointwise import CurvePins, PointwiseMaps, VertexRows, fit_fmap, no_pins
+from curvefm.pointwise import CurvePins, PointwiseMaps, VertexRows, fit_fmap, nearest_orthogonal, no_pins
 from curvefm.progress import Progress, no_progress
 from curvefm.spectral import Basis
 
@@ -42,12 +42,6 @@ class IcpParams(SampledRefinementParams):
         if self.samples is not None and self.samples < self.k_image:
             raise ValueError(f"samples ({self.samples}) must be at least k_image ({self.k_image})")
         return self
-
-
-def nearest_orthogonal(C: np.ndarray) -> np.ndarray:
-    """The matrix with orthonormal columns closest to ``C`` in Frobenius norm (``U V^T`` of its SVD)."""
-    U, _, Vt = np.linalg.svd(C, full_matrices=False)
-    return U @ Vt
 
 
 def orthogonal_fmap(p2p: np.ndarray, domain: VertexRows, image: VertexRows, params: IcpParams) -> np.ndarray:

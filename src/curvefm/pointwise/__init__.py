@@ -10,6 +10,8 @@ from their modules; the search and sampling thresholds that the converters' para
 from curvefm.pointwise.conversion import (
     PointwiseMaps,
     fmap_from_pointwise,
+    nearest_orthogonal,
+    orthogonal_steps,
     pointwise_from_both,
     pointwise_from_fmap,
 )
@@ -57,7 +59,9 @@ __all__ = [
     "match_rows",
     "measure",
     "nearest_neighbors",
+    "nearest_orthogonal",
     "no_pins",
+    "orthogonal_steps",
     "pointwise_from_both",
     "pointwise_from_fmap",
     "refinement_samples",

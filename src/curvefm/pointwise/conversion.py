@@ -15,6 +15,10 @@ import numpy as np
 from curvefm.pointwise.neighbors import nearest_neighbors
 from curvefm.spectral import Basis
 
+#: functions on the image side that :func:`orthogonal_steps` adds to the map's size (as the ``icp`` converter's 50 x
+#: 80: square maps drift, see :mod:`curvefm.plugins.icp`)
+ORTHOGONAL_EXTRA = 30
+
 
 @dataclass(frozen=True)
 class PointwiseMaps:
@@ -62,6 +66,30 @@ def _beside(E: np.ndarray, C: np.ndarray, mapped_first: bool) -> np.ndarray:
     np.matmul(E32, C.T.astype(np.float32), out=mapped)
     plain[...] = E32
     return out
+
+
+def nearest_orthogonal(C: np.ndarray) -> np.ndarray:
+    """The matrix with orthonormal columns closest to ``C`` in Frobenius norm (``U V^T`` of its SVD)."""
+    U, _, Vt = np.linalg.svd(C, full_matrices=False)
+    return U @ Vt
+
+
+def orthogonal_steps(
+    p2p_NM: np.ndarray, basis_M: Basis, basis_N: Basis, k_M: int, k_N: int, steps: int, search: str = "auto"
+) -> np.ndarray:
+    """``p2p_NM`` after ``steps`` orthogonal steps at the functional map's own size (the ICP of Ovsjanikov et al.
+    2012): fit the map of functions on M (``k_M``) to N that the pointwise map induces, with
+    :data:`ORTHOGONAL_EXTRA` more functions on N where its basis has them, replace it by the nearest map with
+    orthonormal columns (an isometry's, on unit-area bases) and match by nearest neighbours again. None where N's
+    basis has no function beyond the map's: square steps drift (the curve energy's 120 x 120 map from 10 curves on
+    FAUST 000 -> 011 went from 0.0276 to 0.0335)."""
+    k_image = min(k_N + ORTHOGONAL_EXTRA, basis_N.k)
+    if k_image <= k_N:
+        return p2p_NM
+    for _ in range(steps):
+        C = nearest_orthogonal(fmap_from_pointwise(p2p_NM, basis_M, basis_N, k_M, k_image))
+        p2p_NM = nearest_neighbors(basis_M.evecs[:, :k_M] @ C.T, basis_N.evecs[:, :k_image], search)
+    return p2p_NM
 
 
 def fmap_from_pointwise(p2p_NM: np.ndarray, basis_M: Basis, basis_N: Basis, k_M: int, k_N: int) -> np.ndarray:
