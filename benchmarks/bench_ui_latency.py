@@ -29,11 +29,16 @@ for L = 2, where issue 14's budget is p95 <= 150 ms). Shapes above the server's 
 map; and the gzipped bytes of ``GET /shapes/{id}/mesh`` for the display copy and the whole mesh, with the time of
 the first request for the copy (which makes it).
 
+``--worker-memory SIZE`` runs the jobs on one ``curvefm worker`` with that memory budget (``--memory``) on a private
+``redis-server`` instead of the server's in-process executor, and reports the worker's peak resident memory (its
+work horses' included, from ``/usr/bin/time``). With ``--scan-level 4`` (1,763,330 vertices a shape) the bases take
+minutes each: keep ``--data`` between runs, the second run finds them.
+
 Endpoints are pairs of vertices visible on both shapes with the same id (TOSCA poses of one class, and FAUST
 registrations, correspond by id), sampled on a grid over the source canvas, at least 120 pixels apart. Prints JSON.
 
 Usage: ``python -m benchmarks.bench_ui_latency [--data DIR] [--curves N] [--pause S] [--large-curves M] [--no-large]
-[--scan-level L] [--transfer-levels L ...] [--transfer-reads N]``
+[--scan-level L] [--transfer-levels L ...] [--transfer-reads N] [--worker-memory SIZE]``
 """
 
 from __future__ import annotations
@@ -41,7 +46,11 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
+import signal
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -49,6 +58,7 @@ import httpx
 import numpy as np
 import trimesh
 
+from benchmarks.bench_queues import start_redis
 from benchmarks.common import REPO, machine, shared_data, start_server
 
 sys.path.insert(0, str(REPO / "tests"))
@@ -245,6 +255,22 @@ def measure_in_browser(browser, client: httpx.Client, url: str, token: str, args
     return result
 
 
+def start_worker(redis_url: str, memory: str, log: Path) -> subprocess.Popen:
+    """One ``curvefm worker`` on every queue with the budget ``memory``, under ``/usr/bin/time -v`` (into ``log``)."""
+    command = [sys.executable, "-m", "curvefm.workers", "--redis-url", redis_url, "--memory", memory]
+    return subprocess.Popen(["/usr/bin/time", "-v", *command], stdout=subprocess.DEVNULL, stderr=open(log, "w"))  # noqa: SIM115
+
+
+def worker_peak_gb(worker: subprocess.Popen, log: Path) -> float | None:
+    """The worker's peak resident memory (its largest work horse's, or its own) once it has stopped."""
+    children = Path(f"/proc/{worker.pid}/task/{worker.pid}/children").read_text().split()
+    for child in children:  # the worker itself: /usr/bin/time waits for it and then writes its report
+        os.kill(int(child), signal.SIGTERM)
+    worker.wait(timeout=60)
+    found = re.search(r"Maximum resident set size \(kbytes\): (\d+)", log.read_text())
+    return round(int(found[1]) / 2**20, 2) if found else None
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--data", default=os.environ.get("CURVEFM_BENCH_DATA", "/tmp/curvefm-bench"))
@@ -260,12 +286,19 @@ def main() -> None:
     parser.add_argument("--scan-level", type=int, default=0, help="latency on FAUST subdivided this many times")
     parser.add_argument("--transfer-levels", type=int, nargs="*", default=[], help="time the reads at these levels")
     parser.add_argument("--transfer-reads", type=int, default=40)
+    parser.add_argument("--worker-memory", help="run the jobs on a curvefm worker with this budget (e.g. 12G)")
     args = parser.parse_args()
     if not CHROMIUM.is_file():
         sys.exit(f"benchmark needs Chromium at {CHROMIUM} (set CURVEFM_CHROMIUM)")
     from playwright.sync_api import sync_playwright
 
-    server, url, headers = start_server(Path(args.data))
+    folder = Path(tempfile.mkdtemp(prefix="curvefm-bench-ui-"))
+    helpers, server_args = [], ("--rate-limit", "0")
+    if args.worker_memory:
+        redis, redis_url = start_redis(folder)
+        helpers = [redis, start_worker(redis_url, args.worker_memory, folder / "worker.log")]
+        server_args += ("--redis-url", redis_url)
+    server, url, headers = start_server(Path(args.data), server_args)
     token = headers["Authorization"].split()[-1]
     try:
         client = httpx.Client(base_url=url, timeout=600, headers=headers)
@@ -279,10 +312,18 @@ def main() -> None:
         if reads:
             result["scan_reads"] = reads
         result["machine"]["load_average_1min_end"] = os.getloadavg()[0]
+        if args.worker_memory:
+            result["worker"] = {
+                "memory": args.worker_memory,
+                "peak_gb": worker_peak_gb(helpers[1], folder / "worker.log"),
+            }
         print(json.dumps(result, indent=1))
     finally:
         server.terminate()
         server.wait(timeout=30)
+        for helper in reversed(helpers):
+            helper.kill()
+            helper.wait()
 
 
 if __name__ == "__main__":
