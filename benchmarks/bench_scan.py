@@ -11,14 +11,15 @@ measured on the original 6,890 vertices.
 
 With ``--cli-levels 0,4`` the pair at each level is written as binary PLY to a temporary folder with a curves file
 (10 curves between 20 farthest points of the original vertices, traced on the subdivided meshes) and run through
-``curvefm match`` in a child process under ``/usr/bin/time -v`` (a fresh data folder: both bases are computed);
-``--refine zoomout`` adds a refinement. Reported: the child's wall time and peak resident memory and both maps'
-errors on the original vertices (mean geodesic error / sqrt(area), graph geodesics on the subdivided target).
-Level 4 is 1,763,330 vertices a mesh: run nothing else that large beside it.
+``curvefm match`` in a child process under ``/usr/bin/time -v`` (a fresh data folder: both bases are computed;
+``--cli-data DIR`` keeps them there between runs); ``--refine zoomout`` adds a refinement. Reported: the child's
+wall time and peak resident memory and both maps' errors on the original vertices (mean geodesic error /
+sqrt(area), graph geodesics on the subdivided target). Level 4 is 1,763,330 vertices a mesh: run nothing else that
+large beside it.
 
 Usage: ``python -m benchmarks.bench_scan [--levels 0,1,2] [--with-440k] [--map-level 2] [--k 120]
-[--cli-levels 0,4] [--refine NAME]``; prints JSON. The 440k level (three subdivisions) needs about 1.5 GB for our
-solvers, the plain call about 3 GB.
+[--cli-levels 0,4] [--refine NAME] [--cli-data DIR]``; prints JSON. The 440k level (three subdivisions) needs about
+1.5 GB for our solvers, the plain call about 3 GB.
 """
 
 from __future__ import annotations
@@ -132,7 +133,7 @@ def original_curves() -> list[dict]:
     return [{"source": [int(a[0]), int(a[-1])], "target": [int(b[0]), int(b[-1])]} for a, b in curves]
 
 
-def bench_cli(level: int, k: int, refine: str, folder: str) -> dict:
+def bench_cli(level: int, k: int, refine: str, folder: str, data: str | None) -> dict:
     paths = [os.path.join(folder, f"{name}-{level}.ply") for name in PAIR]
     for name, path in zip(PAIR, paths, strict=True):
         mesh = subdivided(name, level)
@@ -168,7 +169,7 @@ def bench_cli(level: int, k: int, refine: str, folder: str) -> dict:
         raise RuntimeError(f"curvefm match failed at level {level}: {output[-3000:]}")
     peak_kb = int(re.search(r"Maximum resident set size \(kbytes\): (\d+)", output)[1])
     out = {"vertices": vertices, "refine": refine}
-    out |= {"match_s": round(seconds, 1), "peak_gb": round(peak_kb / 2**20, 2)}
+    out |= {"match_s": round(seconds, 1), "peak_gb": round(peak_kb / 2**20, 2), "bases_kept": data is not None}
     out["errors"] = {direction: cli_error(out_dir, level, direction) for direction in ("source", "target")}
     out["quality"] = json.loads(open(os.path.join(out_dir, "quality.json")).read())["kept"]
     return out
@@ -192,6 +193,7 @@ def main() -> None:
     parser.add_argument("--k", type=int, default=120)
     parser.add_argument("--cli-levels", default="", help="run `curvefm match` on the pair at these levels (0,4)")
     parser.add_argument("--refine", default="nearest-neighbor", help="the converter `curvefm match` uses")
+    parser.add_argument("--cli-data", help="the data folder `curvefm match` keeps its bases in (default: a fresh one)")
     args = parser.parse_args()
     levels = [int(level) for level in args.levels.split(",") if level] + ([3] if args.with_440k else [])
     load_before = round(os.getloadavg()[0], 2)  # other processes on the machine skew every timing
@@ -203,7 +205,7 @@ def main() -> None:
         report["map"] = bench_map(args.map_level, args.k)
     for level in [int(level) for level in args.cli_levels.split(",") if level]:
         with tempfile.TemporaryDirectory() as folder:
-            report.setdefault("cli", {})[str(level)] = bench_cli(level, args.k, args.refine, folder)
+            report.setdefault("cli", {})[str(level)] = bench_cli(level, args.k, args.refine, folder, args.cli_data)
         print(json.dumps(report["cli"][str(level)]), file=sys.stderr, flush=True)
     report["machine"]["load_avg_1min_before_after"] = [load_before, round(os.getloadavg()[0], 2)]
     print(json.dumps(report, indent=2))
