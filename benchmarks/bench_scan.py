@@ -157,7 +157,7 @@ def bench_cli(level: int, k: int, refine: str, folder: str, data: str | None) ->
         "--k",
         str(k),
     ]
-    command += ["--data", os.path.join(folder, f"data-{level}"), "--refine", refine]
+    command += ["--data", data or os.path.join(folder, f"data-{level}"), "--refine", refine]
     log = os.path.join(folder, "match.log")
     print(f"curvefm match at level {level}: progress in {log}", file=sys.stderr, flush=True)
     start = time.perf_counter()
