@@ -19,7 +19,7 @@ web UI in headless Chromium (WebGL through SwiftShader, i.e. drawn on the CPU). 
 landmark prior (computed once a session has had no new curve for a second) runs beside the next curve's clicks.
 
 ``--scan-level L`` measures ``latency`` on FAUST tr_reg_000 -> tr_reg_011 subdivided L times instead
-(``trimesh.remesh.subdivide``, generated at run time and uploaded as PLY, never written to disk: 110,210 vertices
+(``trimesh.remesh.subdivide``, generated at run time and uploaded as PLY, never kept: 110,210 vertices
 for L = 2, where issue 14's budget is p95 <= 150 ms). Shapes above the server's ``CURVEFM_DISPLAY_VERTICES``
 (default 50,000) are drawn as display copies; set it to 0 in the environment to draw them whole.
 
@@ -27,13 +27,19 @@ for L = 2, where issue 14's budget is p95 <= 150 ms). Shapes above the server's 
 110,210 vertices, 3: 440,834): ``GET /sessions/{id}/transfer?function=uv`` with one row per vertex
 (``resolution=full``) and per display vertex (``resolution=display``), interleaved, after a read that solved the
 map; and the gzipped bytes of ``GET /shapes/{id}/mesh`` for the display copy and the whole mesh, with the time of
-the first request for the copy (which makes it).
+the first request for the copy (which makes it); and the round trips of five edits as the page sends them
+(``?carry=uv&resolution=display``: trace, solve, store and the carried texture coordinates at display rows).
+
+``--worker-memory SIZE`` runs the jobs on one ``curvefm worker`` with that memory budget (``--memory``) on a private
+``redis-server`` instead of the server's in-process executor, and reports the worker's peak resident memory (its
+work horses' included, from ``/usr/bin/time``). With ``--scan-level 4`` (1,763,330 vertices a shape) the bases take
+minutes each: keep ``--data`` between runs, the second run finds them.
 
 Endpoints are pairs of vertices visible on both shapes with the same id (TOSCA poses of one class, and FAUST
 registrations, correspond by id), sampled on a grid over the source canvas, at least 120 pixels apart. Prints JSON.
 
 Usage: ``python -m benchmarks.bench_ui_latency [--data DIR] [--curves N] [--pause S] [--large-curves M] [--no-large]
-[--scan-level L] [--transfer-levels L ...] [--transfer-reads N]``
+[--scan-level L] [--transfer-levels L ...] [--transfer-reads N] [--worker-memory SIZE]``
 """
 
 from __future__ import annotations
@@ -41,15 +47,21 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
+import signal
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
 import httpx
 import numpy as np
-import trimesh
 
+from benchmarks.bench_queues import start_redis
+from benchmarks.bench_scan import subdivided
 from benchmarks.common import REPO, machine, shared_data, start_server
+from curvefm.geometry import save_mesh
 
 sys.path.insert(0, str(REPO / "tests"))
 from support.ui import (  # noqa: E402  (shared with the browser tests: tests/support/ui.py)
@@ -67,6 +79,8 @@ LATENCY_PAIR = ("cat0.off", "cat1.off")
 LARGE_PAIR = ("david0.off", "david1.off")
 SCAN_PAIR = ("tr_reg_000", "tr_reg_011")
 FROZEN_GAP_MS = 1000
+EDITS = [[412, 5910], [3500, 6500], [1200, 4400], [2000, 6100], [800, 3100]]
+"""Curves of ``--transfer-levels``' edits, between original FAUST vertices (their ids hold at every level)."""
 
 # Installed before the page's own scripts: records long tasks and the gaps between animation frames.
 MONITOR_JS = """
@@ -89,14 +103,14 @@ def tosca_files(names: tuple[str, str]) -> list[tuple[str, bytes]]:
 
 
 def subdivided_faust(level: int) -> list[tuple[str, bytes]]:
-    """FAUST tr_reg_000 and tr_reg_011 subdivided ``level`` times, as PLY files in memory."""
+    """FAUST tr_reg_000 and tr_reg_011 subdivided ``level`` times, as PLY files in memory, byte for byte those of
+    ``bench_scan --cli-levels`` (so bases that ``curvefm match`` computed there serve here too)."""
     files = []
-    for name in SCAN_PAIR:
-        mesh = trimesh.load(shared_data() / "faust" / f"{name}.off", process=False)
-        vertices, faces = mesh.vertices, mesh.faces
-        for _ in range(level):
-            vertices, faces = trimesh.remesh.subdivide(vertices, faces)
-        files.append((f"{name}_x{level}.ply", trimesh.Trimesh(vertices, faces, process=False).export(file_type="ply")))
+    with tempfile.TemporaryDirectory() as folder:
+        for name in SCAN_PAIR:
+            path = Path(folder) / f"{name}_x{level}.ply"
+            save_mesh(subdivided(name, level), path)
+            files.append((path.name, path.read_bytes()))
     return files
 
 
@@ -221,7 +235,22 @@ def measure_scan_reads(client: httpx.Client, level: int, reads: int) -> dict:
         "vertices": n,
         "mesh_payload": mesh_payloads(client, record["target"]),
         "transfer_uv": measure_transfer(client, session_id, reads),
+        "edit_with_carry": measure_edits(client, session_id, EDITS),
     }
+
+
+def measure_edits(client: httpx.Client, session_id: str, curves: list[list[int]]) -> dict:
+    """Round trips of the page's edit (``?carry=uv&resolution=display``): a curve between two original FAUST
+    vertices (the same ids on both shapes) traced on both, both maps updated, the texture coordinates carried."""
+    url, times = f"/sessions/{session_id}/curves", []
+    for ends in curves:
+        started = time.perf_counter()
+        response = client.post(
+            url, params={"carry": "uv", "resolution": "display"}, json={"source": ends, "target": ends}
+        )
+        times.append(ms_since(started))
+        response.raise_for_status()
+    return {"curves": len(curves), "p50_ms": percentile(times, 50), "ms": [round(ms, 1) for ms in times]}
 
 
 def pair_files(scan_level: int, tosca_pair: tuple[str, str]) -> tuple[list[tuple[str, bytes]], str]:
@@ -245,6 +274,22 @@ def measure_in_browser(browser, client: httpx.Client, url: str, token: str, args
     return result
 
 
+def start_worker(redis_url: str, memory: str, log: Path) -> subprocess.Popen:
+    """One ``curvefm worker`` on every queue with the budget ``memory``, under ``/usr/bin/time -v`` (into ``log``)."""
+    command = [sys.executable, "-m", "curvefm.workers", "--redis-url", redis_url, "--memory", memory]
+    return subprocess.Popen(["/usr/bin/time", "-v", *command], stdout=subprocess.DEVNULL, stderr=open(log, "w"))  # noqa: SIM115
+
+
+def worker_peak_gb(worker: subprocess.Popen, log: Path) -> float | None:
+    """The worker's peak resident memory (its largest work horse's, or its own) once it has stopped."""
+    children = Path(f"/proc/{worker.pid}/task/{worker.pid}/children").read_text().split()
+    for child in children:  # the worker itself: /usr/bin/time waits for it and then writes its report
+        os.kill(int(child), signal.SIGTERM)
+    worker.wait(timeout=60)
+    found = re.search(r"Maximum resident set size \(kbytes\): (\d+)", log.read_text())
+    return round(int(found[1]) / 2**20, 2) if found else None
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--data", default=os.environ.get("CURVEFM_BENCH_DATA", "/tmp/curvefm-bench"))
@@ -260,12 +305,19 @@ def main() -> None:
     parser.add_argument("--scan-level", type=int, default=0, help="latency on FAUST subdivided this many times")
     parser.add_argument("--transfer-levels", type=int, nargs="*", default=[], help="time the reads at these levels")
     parser.add_argument("--transfer-reads", type=int, default=40)
+    parser.add_argument("--worker-memory", help="run the jobs on a curvefm worker with this budget (e.g. 12G)")
     args = parser.parse_args()
     if not CHROMIUM.is_file():
         sys.exit(f"benchmark needs Chromium at {CHROMIUM} (set CURVEFM_CHROMIUM)")
     from playwright.sync_api import sync_playwright
 
-    server, url, headers = start_server(Path(args.data))
+    folder = Path(tempfile.mkdtemp(prefix="curvefm-bench-ui-"))
+    helpers, server_args = [], ("--rate-limit", "0")
+    if args.worker_memory:
+        redis, redis_url = start_redis(folder)
+        helpers = [redis, start_worker(redis_url, args.worker_memory, folder / "worker.log")]
+        server_args += ("--redis-url", redis_url)
+    server, url, headers = start_server(Path(args.data), server_args)
     token = headers["Authorization"].split()[-1]
     try:
         client = httpx.Client(base_url=url, timeout=600, headers=headers)
@@ -279,10 +331,18 @@ def main() -> None:
         if reads:
             result["scan_reads"] = reads
         result["machine"]["load_average_1min_end"] = os.getloadavg()[0]
+        if args.worker_memory:
+            result["worker"] = {
+                "memory": args.worker_memory,
+                "peak_gb": worker_peak_gb(helpers[1], folder / "worker.log"),
+            }
         print(json.dumps(result, indent=1))
     finally:
         server.terminate()
         server.wait(timeout=30)
+        for helper in reversed(helpers):
+            helper.kill()
+            helper.wait()
 
 
 if __name__ == "__main__":

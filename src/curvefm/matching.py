@@ -27,6 +27,9 @@ from curvefm.session import CurveSpec, pinned_pieces, trace_pair
 from curvefm.spectral import ShapePair
 from curvefm.store import Store
 
+BASES_AT_ONCE_MAX_VERTICES = 1_000_000
+"""The pair of 440,834-vertex meshes still computes its bases at once (6.4 GB for the whole match)."""
+
 
 @dataclass(frozen=True)
 class MatchResult:
@@ -84,11 +87,16 @@ def pair_with_basis_size(
 
     Two different meshes' bases are computed at once, in two threads: the eigensolvers' factorisations and
     products release the GIL for part of their time (440k vertices a mesh: 63 s one after the other, 52 s at
-    once, 2026-11-23 beside other work)."""
+    once, 2026-11-23 beside other work). Above :data:`BASES_AT_ONCE_MAX_VERTICES` vertices in all they are computed
+    one after the other: two at once need both solvers' memory (docs/performance.md, "Scans of millions")."""
     mesh_M, mesh_N = meshes
     if mesh_M.content_hash == mesh_N.content_hash:
         basis = store.ensure_basis(mesh_M, k, plugin, params, progress)
         return ShapePair(mesh_M, mesh_N, basis, basis)
+    if mesh_M.n_vertices + mesh_N.n_vertices > BASES_AT_ONCE_MAX_VERTICES:
+        parts = shared(progress, 2)
+        basis_M = store.ensure_basis(mesh_M, k, plugin, params, parts[0])
+        return ShapePair(mesh_M, mesh_N, basis_M, store.ensure_basis(mesh_N, k, plugin, params, parts[1]))
     with ThreadPoolExecutor(2, thread_name_prefix="curvefm-basis") as pool:
         futures = [
             pool.submit(store.ensure_basis, mesh, k, plugin, params, part)

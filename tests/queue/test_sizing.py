@@ -15,7 +15,7 @@ from support.errors import expect
 from support.processes import descendants
 
 from curvefm.errors import ResourceLimit
-from curvefm.geometry import load_mesh
+from curvefm.geometry import build_mesh, load_mesh
 from curvefm.store import Store
 from curvefm.workers.embedded import EmbeddedQueue
 from curvefm.workers.interface import JobInfo, JobQueue
@@ -61,12 +61,36 @@ def wait(queue: JobQueue, job_id: str, until=("finished", "failed", "canceled", 
 
 
 def test_the_estimates_cover_the_measured_peaks():
-    """The peaks of docs/performance.md ("Job sizes"): the basis pipeline at k = 120 (the larger of its two
-    methods) and curvefm match on a pair (the vertices of both shapes)."""
-    measured = {("basis", 6_890): 0.17e9, ("basis", 110_210): 0.99e9, ("basis", 440_834): 3.36e9}
-    measured |= {("refine", 2 * 110_210): 1.7e9, ("refine", 2 * 440_834): 6.4e9}
-    for (kind, vertices), peak in measured.items():
-        assert demand(kind, vertices, 120, JobSizing()).memory_bytes > peak * 1.2, (kind, vertices)
+    """The peaks of docs/performance.md ("Job sizes"): the basis pipeline at k = 120, exact and multiresolution, and
+    curvefm match on a pair (the vertices of both shapes; bases one after the other above a million)."""
+    gib = 2**30
+    exact = {6_890: 0.16, 110_210: 0.77, 440_834: 2.53}
+    approximate = {110_210: 0.62, 440_834: 1.76}
+    pairs = {2 * 110_210: 1.7, 2 * 440_834: 6.4, 2 * 1_763_330: 10.17}
+    for vertices, peak in exact.items():
+        assert demand("basis", vertices, 120, JobSizing()).memory_bytes > peak * gib * 1.2, vertices
+    for vertices, peak in approximate.items():
+        assert demand("basis", vertices, 120, JobSizing(), approximate=True).memory_bytes > peak * gib * 1.2, vertices
+    for vertices, peak in pairs.items():
+        assert demand("refine", vertices, 120, JobSizing()).memory_bytes > peak * gib * 1.2, vertices
+
+
+def test_a_big_multiresolution_basis_states_less_than_an_exact_one(store, shared_data):
+    """A laplace-beltrami basis job of a mesh past the multiresolution threshold states the multiresolution fit
+    unless its parameters ask for the exact solver; another basis plugin states the exact fit."""
+    import trimesh
+
+    mesh = load_mesh(shared_data / "faust" / "tr_reg_000.off")
+    vertices, faces = mesh.vertices, mesh.faces
+    for _ in range(2):
+        vertices, faces = trimesh.remesh.subdivide(vertices, faces)
+    big = store.put_mesh(build_mesh(vertices, faces))
+    kwargs = basis(store, big, 120) | {"plugin": "laplace-beltrami"}
+    auto = job_demand("basis", kwargs | {"params": {"method": "auto"}}, DEFAULT_SIZING)
+    exact = job_demand("basis", kwargs | {"params": {"method": "exact"}}, DEFAULT_SIZING)
+    other = job_demand("basis", kwargs | {"plugin": "other"}, DEFAULT_SIZING)
+    assert auto.vertices == exact.vertices == 110_210
+    assert auto.memory_bytes < exact.memory_bytes == other.memory_bytes
 
 
 def test_a_job_states_a_limit_and_memory_that_grow_with_its_mesh(request, store, faust_id, tmp_path):

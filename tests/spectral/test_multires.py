@@ -8,7 +8,7 @@ import pytest
 import trimesh
 
 from curvefm.geometry import cotangent_laplacian, load_mesh
-from curvefm.spectral import multires_eigenpairs, smallest_eigenpairs
+from curvefm.spectral import multires, multires_eigenpairs, smallest_eigenpairs
 from curvefm.spectral.multires import prolongation
 
 K = 60
@@ -40,3 +40,15 @@ def test_prolongation_is_a_partition_of_unity(subdivided):
     assert 1000 < prolong.shape[1] <= 2200
     np.testing.assert_allclose(np.asarray(prolong.sum(axis=1)).ravel(), 1.0, atol=1e-6)
     assert prolong.min() >= 0 and np.all(np.diff(prolong.indptr) <= 3)
+
+
+def test_blocks_do_not_change_the_basis(subdivided, monkeypatch):
+    """Scans are refined a few columns and rows at a time (to bound memory): block sizes that divide neither the
+    columns nor the rows give the basis of one block, two refinement steps included."""
+    vertices, faces, L, mass = subdivided
+    whole = multires_eigenpairs(L, mass, vertices, faces, 20, coarse_vertices=1500, refine_steps=2)
+    monkeypatch.setattr(multires, "SOLVE_COLUMNS", 7)
+    monkeypatch.setattr(multires, "ROW_BLOCK", 1000)
+    blocked = multires_eigenpairs(L, mass, vertices, faces, 20, coarse_vertices=1500, refine_steps=2)
+    np.testing.assert_allclose(blocked[0], whole[0], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(np.abs(blocked[1]), np.abs(whole[1]), atol=1e-7)

@@ -15,6 +15,8 @@ The eigenvalue error is measured in benchmarks/bench_scan.py and checked in test
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
@@ -26,6 +28,10 @@ from curvefm.spectral.eigensolver import SIGMA, shifted_factor, smallest_eigenpa
 COARSE_VERTICES = 8_000
 EXTRA = 40  # coarse eigenpairs beyond k: the subspace iteration converges like (lambda_k / lambda_{k+extra})^steps
 REFINE_STEPS = 1  # 110k vertices: eigenvalue error 1.3e-4 after one step, 3.5e-5 after two (at 1.4x the time)
+# Scans of millions of vertices: the full-size work is done in blocks, so one n x (k + extra) array is the only
+# large one besides the result (1.76M vertices, k = 120: 2.3 GB and 1.7 GB; whole-array temporaries were 4 more)
+SOLVE_COLUMNS = 20
+ROW_BLOCK = 1 << 16
 
 
 def multires_eigenpairs(
@@ -47,13 +53,15 @@ def multires_eigenpairs(
     count = min(k + EXTRA, prolong.shape[1] - 2)
     _, coarse_vecs = smallest_eigenpairs(coarse_L, coarse_mass, count, workers=1)
     x = prolong @ coarse_vecs
+    del prolong, coarse_L
     factor = shifted_factor(L, mass, SIGMA)
-    for step in range(refine_steps):
-        rhs = np.multiply(mass[:, None], x, order="F")  # CHOLMOD solves Fortran-ordered right-hand sides
-        x = factor.solve(rhs)
-        evals, coefficients = _rayleigh_ritz(mass, x, rhs)
-        x = x @ coefficients[:, : k if step == refine_steps - 1 else None]
-    return evals[:k], x
+    for _ in range(refine_steps - 1):
+        _solve_in_place(factor.solve, mass, x)
+        x = _rotated(x, _rayleigh_ritz(L, mass, x)[1])
+    _solve_in_place(factor.solve, mass, x)
+    del factor  # as big as x at scan size: gone before the result is made
+    evals, rotation = _rayleigh_ritz(L, mass, x)
+    return evals[:k], _rotated(x, rotation[:, :k])
 
 
 def prolongation(vertices: np.ndarray, faces: np.ndarray, coarse_vertices: int) -> sp.csr_matrix:
@@ -65,13 +73,32 @@ def prolongation(vertices: np.ndarray, faces: np.ndarray, coarse_vertices: int) 
     return matrix[:, np.flatnonzero(np.asarray(matrix.sum(axis=0)).ravel() > 0)].tocsr()
 
 
-def _rayleigh_ritz(mass: np.ndarray, x: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Ritz values (ascending) of ``L phi = lambda A phi`` on span(x), for ``x = (L - SIGMA A)^-1 rhs``, and the
-    coefficients ``y`` that make ``x @ y`` the mass-orthonormal Ritz vectors. ``x^T L x`` is ``x^T rhs + SIGMA
-    x^T A x``: no product with ``L``."""
-    projected_mass = x.T @ (mass[:, None] * x)
-    projected_L = x.T @ rhs + SIGMA * projected_mass
-    scale = 1 / np.sqrt(np.diag(projected_mass))  # unit columns: shift-invert scales them apart
-    projected_mass, projected_L = (scale[:, None] * m * scale for m in (projected_mass, projected_L))
-    evals, y = sla.eigh((projected_L + projected_L.T) / 2, (projected_mass + projected_mass.T) / 2)
-    return evals, scale[:, None] * y
+def _solve_in_place(solve: Callable[[np.ndarray], np.ndarray], mass: np.ndarray, x: np.ndarray) -> None:
+    """``x <- (L - sigma A)^-1 A x``, a few columns at a time."""
+    for start in range(0, x.shape[1], SOLVE_COLUMNS):
+        columns = slice(start, start + SOLVE_COLUMNS)
+        x[:, columns] = solve(np.asfortranarray(mass[:, None] * x[:, columns]))
+
+
+def _rayleigh_ritz(L: sp.csr_matrix, mass: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Ritz values (ascending) and the rotation ``y`` that makes ``x @ y`` the mass-orthonormal Ritz vectors of
+    ``L phi = lambda A phi`` on span(x); scales x's columns to unit mass norm in place (shift-invert scales them
+    apart)."""
+    x /= np.sqrt(np.einsum("ij,i,ij->j", x, mass, x))
+    m = x.shape[1]
+    projected_mass, projected_L = np.zeros((m, m)), np.zeros((m, m))
+    for rows in _row_blocks(len(x)):
+        projected_mass += x[rows].T @ (mass[rows, None] * x[rows])
+        projected_L += x[rows].T @ (L[rows] @ x)
+    return sla.eigh((projected_L + projected_L.T) / 2, (projected_mass + projected_mass.T) / 2)
+
+
+def _rotated(x: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    out = np.empty((len(x), rotation.shape[1]))
+    for rows in _row_blocks(len(x)):
+        out[rows] = x[rows] @ rotation
+    return out
+
+
+def _row_blocks(n: int) -> list[slice]:
+    return [slice(start, start + ROW_BLOCK) for start in range(0, n, ROW_BLOCK)]

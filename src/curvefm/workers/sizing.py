@@ -18,13 +18,20 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from pydantic import ValidationError
 
 from curvefm.errors import InvalidInput, ResourceLimit
+from curvefm.matching import BASES_AT_ONCE_MAX_VERTICES
+from curvefm.spectral.laplace_beltrami import DEFAULT_BASIS, MULTIRES_MIN_VERTICES, LaplaceBeltramiParams
 
 FIXED_BYTES = 250 * 2**20
 """The interpreter, numpy, scipy and CHOLMOD loaded, before any mesh."""
-BYTES_PER_VERTEX = 4_000
-BYTES_PER_VERTEX_AND_COLUMN = 32
+BYTES_PER_VERTEX = {"basis": 4_000, "approximate basis": 1_000, "refine": 4_000, "big refine": 1_000}
+BYTES_PER_VERTEX_AND_COLUMN = {"basis": 32, "approximate basis": 24, "refine": 32, "big refine": 20}
+"""The fits, per vertex and per vertex and basis column: ``basis`` covers the exact eigensolver (and any basis
+plugin), ``approximate basis`` the multiresolution one that ``laplace-beltrami`` uses on big meshes; ``refine`` a
+pair whose bases are computed at once, ``big refine`` one of more than ``BASES_AT_ONCE_MAX_VERTICES`` in all, whose
+bases are computed one after the other (:func:`curvefm.matching.pair_with_basis_size`)."""
 SECONDS_FIXED = 2.0
 SECONDS_PER_VERTEX_AND_COLUMN = {"basis": 1.0e-6, "refine": 2.0e-6}
 
@@ -59,9 +66,15 @@ class JobDemand:
         return f"{self.vertices:,} vertices at k = {self.k}"
 
 
-def demand(kind: str, vertices: int, k: int, sizing: JobSizing) -> JobDemand:
-    """The demand of a job of ``kind`` that loads ``vertices`` vertices in all with bases of ``k`` columns."""
-    fitted = FIXED_BYTES + vertices * (BYTES_PER_VERTEX + BYTES_PER_VERTEX_AND_COLUMN * k)
+def demand(kind: str, vertices: int, k: int, sizing: JobSizing, approximate: bool = False) -> JobDemand:
+    """The demand of a job of ``kind`` that loads ``vertices`` vertices in all with bases of ``k`` columns
+    (``approximate``: a basis job that uses the multiresolution eigensolver)."""
+    fit = kind
+    if kind == "basis" and approximate:
+        fit = "approximate basis"
+    elif kind == "refine" and vertices > BASES_AT_ONCE_MAX_VERTICES:
+        fit = "big refine"
+    fitted = FIXED_BYTES + vertices * (BYTES_PER_VERTEX[fit] + BYTES_PER_VERTEX_AND_COLUMN[fit] * k)
     run_s = SECONDS_FIXED + SECONDS_PER_VERTEX_AND_COLUMN[kind] * vertices * k
     timeout_s = max(sizing.timeout_floor_s, sizing.timeout_factor * run_s)
     return JobDemand(vertices, k, round(fitted * sizing.memory_margin), round(timeout_s))
@@ -72,10 +85,23 @@ def job_demand(kind: str, kwargs: dict, sizing: JobSizing) -> JobDemand:
     A shape that is not stored, or not named, counts as none: the job itself fails as soon as it starts, saying why."""
     data_dir = Path(kwargs.get("data_dir", "."))
     if kind == "basis":
-        return demand(kind, _vertex_count(data_dir, kwargs.get("mesh_id", "")), int(kwargs.get("k", 0)), sizing)
+        vertices = _vertex_count(data_dir, kwargs.get("mesh_id", ""))
+        approximate = _approximate_basis(kwargs.get("plugin", DEFAULT_BASIS), kwargs.get("params"), vertices)
+        return demand(kind, vertices, int(kwargs.get("k", 0)), sizing, approximate)
     session = kwargs.get("session", {})
     vertices = sum(_vertex_count(data_dir, session.get(side, "")) for side in ("source", "target"))
     return demand(kind, vertices, max(int(session.get("k", 0)), _converter_basis_size(kwargs)), sizing)
+
+
+def _approximate_basis(plugin: str, params: dict | None, vertices: int) -> bool:
+    """Whether a basis job of ``plugin`` with ``params`` computes the multiresolution basis on ``vertices``."""
+    if plugin != DEFAULT_BASIS:
+        return False
+    try:
+        method = LaplaceBeltramiParams.model_validate(params or {}).method
+    except ValidationError:  # the job reports it when it runs
+        return False
+    return method == "multires" or (method == "auto" and vertices >= MULTIRES_MIN_VERTICES)
 
 
 def _converter_basis_size(kwargs: dict) -> int:
