@@ -260,7 +260,12 @@ class NewThread(BaseModel):
     side: Literal["source", "target"] = Field(
         description="the shape it points at: source (the template) or target (the member's shape)"
     )
-    vertex: int = Field(ge=0, le=2**31 - 1, description="the vertex (a file id, 0-based) of that shape it points at")
+    vertex: int = Field(
+        ge=0,
+        le=2**31 - 1,
+        description="the vertex (a file id, 0-based) of that shape it points at",
+        examples=[EXAMPLE_PATHS["source"][0]],  # else Swagger UI's example requests carry the bound, on no mesh
+    )
 
 
 class CommentReply(BaseModel):
