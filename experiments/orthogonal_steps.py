@@ -4,8 +4,8 @@ none where the basis has no more functions than the map), on issue 35's protocol
 chosen on the source and, in a row of their own, on the target, among the vertices with a ground-truth partner,
 consecutive pairs joined. Scored both ways (mean geodesic error / sqrt(area) of the shape measured on) at the
 ground-truth rows that are not a curve's end. The square steps of docs/decisions.md's table were measured before the
-steps were limited to a larger image side, which leaves nothing to measure here. ``--out`` writes the JSON (no run has
-been recorded yet: the first was stopped for time).
+steps were limited to a larger image side, which leaves nothing to measure here. ``--out`` writes the JSON
+(experiments/orthogonal_steps.json: ``--datasets faust cat-lion --counts 2 10``).
 
     nice python -m experiments.orthogonal_steps [--pairs suite|held-out] [--datasets faust cat-lion]
         [--names PAIR ...] [--counts 2 10] [--out FILE]
