@@ -36,6 +36,9 @@ RUNS = {
 
 SCHEMA_VALID_BUT_REFUSED = {
     "POST /shapes": "whether a file is a mesh is not a JSON schema's to say",
+    "GET /sessions/{session_id}/suggestion": "moved ends given on one shape only (source and target go together)",
+    "PUT /collections/{collection_id}/members/{member_id}/truth": "whether a file is a ground truth of the member's "
+    "shapes (a row per template vertex, ids the member has)",
     "POST /sessions/{session_id}/refine": "converter parameters that contradict each other (k_final < k_init)",
     "POST /collections/{collection_id}/runs": "converter parameters that contradict each other (k_final < k_init)",
     "POST /collections/{collection_id}/members/upload": "a multipart body with no file, or a file that is no mesh",

@@ -93,6 +93,9 @@ REFINE_ERRORS = error_responses(
     429,
     described={400: "the converter's parameters contradict each other, e.g. k_final < k_init"},
 )
+SUGGESTION_ERRORS = error_responses(
+    400, 404, 409, 413, 422, described={400: "moved ends given on one shape only (source and target go together)"}
+)
 
 MAX_CURVES_POSITION = 10**6  # beyond any list (max_curves bounds it): a position past the end means last
 ETAG_SCHEMA = {"description": 'the session\'s revision, quoted ("5")', "schema": {"type": "string"}}
@@ -447,7 +450,7 @@ def get_quality(
 ENDS = r"^[0-9]{1,9},[0-9]{1,9}$"  # nine digits: below MAX_VERTEX_ID, so a spec of them is valid
 
 
-@router.get("/sessions/{session_id}/suggestion", response_model=CurveSuggestion, responses=ERRORS)
+@router.get("/sessions/{session_id}/suggestion", response_model=CurveSuggestion, responses=SUGGESTION_ERRORS)
 def get_suggestion(
     session_id: str,
     services: ServicesDep,
