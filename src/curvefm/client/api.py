@@ -22,6 +22,10 @@ DEFAULT_K = 120
 SHOWN_TEXT = 500
 PAGE_SIZE = 100
 """How many records :meth:`Client.iterate` asks for at a time (the server answers at most 500)."""
+RETRIES = 3
+"""How often a request answered 503 with ``Retry-After`` (the records' database or Redis did not answer, a session
+stayed busy) is sent again by default; nothing was stored by the refused request."""
+RETRY_WAIT_MAX_S = 10.0
 
 
 class JobFailed(CurvefmError):
@@ -57,14 +61,28 @@ def error_of(response: httpx.Response) -> CurvefmError:
     return error
 
 
+def retry_wait(response: httpx.Response, sent: dict[str, Any]) -> float | None:
+    """Seconds to wait before sending a request again: for a 503 that says when to retry, and a body that can be
+    sent twice; None otherwise."""
+    retry_after = response.headers.get("retry-after", "")
+    replayable = "files" not in sent and isinstance(sent.get("content", b""), bytes | str)
+    if response.status_code != 503 or not replayable:
+        return None
+    try:
+        return min(max(float(retry_after), 0.0), RETRY_WAIT_MAX_S)
+    except ValueError:  # an HTTP date, or none: not ours
+        return None
+
+
 class Client:
     """A connection to a curvefm service at ``url``, authenticated by ``token`` (default: ``CURVEFM_TOKEN``;
     ``curvefm users add NAME`` prints one). Use it as a context manager, or :meth:`close` it."""
 
-    def __init__(self, url: str, token: str | None = None, timeout: float = 120.0):
+    def __init__(self, url: str, token: str | None = None, timeout: float = 120.0, retries: int = RETRIES):
         token = token or os.environ.get("CURVEFM_TOKEN")
         headers = {"Authorization": f"Bearer {token}"} if token else {}
         self.http = httpx.Client(base_url=url.rstrip("/"), headers=headers, timeout=timeout)
+        self.retries = retries
 
     def __enter__(self) -> Client:
         return self
@@ -76,8 +94,16 @@ class Client:
         self.http.close()
 
     def request(self, method: str, path: str, **kwargs: Any) -> httpx.Response:
-        """Send a request; an error answer raises its :mod:`curvefm.errors` exception."""
+        """Send a request; an error answer raises its :mod:`curvefm.errors` exception. A 503 with ``Retry-After``
+        is sent again after that wait (at most :data:`RETRY_WAIT_MAX_S`), up to ``retries`` times, unless its body
+        is a stream or files that were read once."""
         response = self.http.request(method, path, **kwargs)
+        for _ in range(self.retries):
+            wait = retry_wait(response, kwargs)
+            if wait is None:
+                break
+            time.sleep(wait)
+            response = self.http.request(method, path, **kwargs)
         if response.is_error:
             raise error_of(response)
         return response

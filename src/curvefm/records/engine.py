@@ -111,11 +111,12 @@ class Database:
             raise self.failure(exc) from None
         return self.url.get_backend_name()
 
-    def failure(self, exc: OperationalError) -> DiskFull | Unavailable:
-        """What the database's failure to answer means: its disk is full, or it does not answer (naming it)."""
-        return disk_full_error(exc) or Unavailable(
-            f"the records' database {self.shown} does not answer: {_reason(exc)}"
-        )
+    def failure(self, exc: OperationalError, located: bool = False) -> DiskFull | Unavailable:
+        """What the database's failure to answer means: its disk is full, or it does not answer (naming its kind;
+        ``located``: its URL too, without the password, for the operator at a command line: never in an answer,
+        where a SQLite URL would show a path)."""
+        where = self.shown if located else f"({self.url.get_backend_name()})"
+        return disk_full_error(exc) or Unavailable(f"the records' database {where} does not answer: {_reason(exc)}")
 
     @property
     def shown(self) -> str:

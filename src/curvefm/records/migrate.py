@@ -40,7 +40,7 @@ def upgrade(database: Database, revision: str = "head") -> None:
             cfg.attributes["connection"] = conn
             command.upgrade(cfg, revision)
     except OperationalError as exc:
-        raise database.failure(exc) from None
+        raise database.failure(exc, located=True) from None
     except DatabaseError as exc:
         raise InternalError(f"{database.shown} is not a curvefm database ({_reason(exc)}); {_REMEDY}") from None
     except CommandError as exc:

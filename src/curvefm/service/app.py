@@ -31,7 +31,7 @@ from curvefm.service.auth import LOCAL_ADMIN, CredentialsFirst
 from curvefm.service.connections import timed_h11, timed_receive
 from curvefm.service.deps import open_records, start_services
 from curvefm.service.docs import DOCS_PAGES, documentation_routes, install_docs_login
-from curvefm.service.errors import error_response, error_responses, install_error_handlers
+from curvefm.service.errors import Outages, error_response, error_responses, install_error_handlers
 from curvefm.service.headers import SecurityHeaders, docs_csp, ui_csp
 from curvefm.service.hints import install_hints
 from curvefm.service.hosts import HostCheck
@@ -140,13 +140,15 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     install_openapi(app, settings, rate_limited=lambda path: not is_unlimited(path))
     install_hints(app)
     install_docs_login(app)
-    # the last added runs first: headers on every answer, then the Host check, the rate limit, credentials
-    # (of writes), the body size, the single sign-on's state cookie
+    # the last added runs first: headers on every answer, then the Host check, 503 for a database or Redis that does
+    # not answer while the next ones use them, the rate limit, credentials (of writes), the body size, the single
+    # sign-on's state cookie
     app.add_middleware(SignInState, settings=settings)
     app.add_middleware(BodySizeLimit, settings=settings)
     app.add_middleware(CredentialsFirst)  # before the body is read, after the rate limit
     if settings.rate_limit:
         app.add_middleware(RateLimit, settings=settings, buckets=buckets, exempt=is_unlimited)
+    app.add_middleware(Outages)
     app.add_middleware(HostCheck, allowed=settings.allowed_hosts)
     app.add_middleware(SecurityHeaders, csp=ui_csp(INDEX_HTML), docs_csp=docs_csp(DOCS_PAGES.values()))
     routes = (

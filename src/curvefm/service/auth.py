@@ -24,7 +24,7 @@ from fastapi.security import HTTPBearer
 
 from curvefm.access import User
 from curvefm.errors import CurvefmError, Forbidden, Unauthenticated
-from curvefm.service.errors import error_response, internal_error_response, status_of
+from curvefm.service.errors import project_error_response
 
 SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
 DEFAULT_PORTS = {"http": 80, "https": 443}
@@ -73,8 +73,7 @@ class CredentialsFirst:
             try:
                 request_user(request)  # remembered in the request's state for the route
             except CurvefmError as exc:
-                refusal = error_response(exc) if status_of(exc) < 500 else internal_error_response(request, exc)
-                await refusal(scope, receive, send)
+                await project_error_response(request, exc)(scope, receive, send)
                 return
         await self.app(scope, receive, send)
 

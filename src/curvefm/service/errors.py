@@ -16,6 +16,8 @@ from typing import Any, Literal, overload
 from fastapi import FastAPI, Request, Response
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from redis.exceptions import ConnectionError as RedisConnectionError
+from redis.exceptions import TimeoutError as RedisTimeoutError
 from sqlalchemy.exc import OperationalError
 from starlette.exceptions import HTTPException
 from starlette.requests import ClientDisconnect
@@ -156,6 +158,58 @@ def error_response(exc: CurvefmError, detail: str | None = None) -> JSONResponse
     return JSONResponse(body, status_code=status_of(exc), headers=headers)
 
 
+def project_error_response(request: Request, exc: CurvefmError) -> JSONResponse:
+    """The answer to any of the project's errors: 500 with an error id for an internal one, 507 (logged for the
+    operator) for a full disk, else :func:`error_response`."""
+    if isinstance(exc, InternalError):
+        return internal_error_response(request, exc)
+    if isinstance(exc, DiskFull):
+        return disk_full_response(request, exc)
+    return error_response(exc)
+
+
+OUTAGES = (OperationalError, RedisConnectionError, RedisTimeoutError)
+"""What the records' database or Redis raise when they do not answer (gone, restarting, a name that does not
+resolve, a SQLite file held by another writer past its busy timeout)."""
+
+
+def outage(exc: Exception) -> DiskFull | Unavailable:
+    """The project's error for one of :data:`OUTAGES`: 507 for a database whose disk is full, else 503."""
+    if not isinstance(exc, OperationalError):
+        return Unavailable("the job queue (Redis) does not answer; try again")
+    reason = " ".join(str(exc.orig).split())[:200]
+    return disk_full_error(exc) or Unavailable(f"the records' database did not answer ({reason}); try again")
+
+
+class Outages:
+    """ASGI middleware around those that use the records' database or Redis (the credentials' check reads the users,
+    the rate limit counts in Redis): a dependency that does not answer while they run is the 503 (or 507) a route's
+    failure gets from the exception handlers, not a 500. Nothing is answered twice: an answer already started is
+    left to the server."""
+
+    def __init__(self, app):
+        self.app = app
+
+    async def __call__(self, scope, receive, send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        started = False
+
+        async def send_and_note(message) -> None:
+            nonlocal started
+            started = started or message["type"] == "http.response.start"
+            await send(message)
+
+        try:
+            await self.app(scope, receive, send_and_note)
+        except OUTAGES as exc:
+            if started:
+                raise
+            log.warning("%s %s: %s", scope["method"], scope["path"], " ".join(str(exc).split())[:300])
+            await project_error_response(Request(scope), outage(exc))(scope, receive, send)
+
+
 def internal_error_response(request: Request, exc: Exception) -> JSONResponse:
     """500 with an error id; the traceback is logged under that id, never sent."""
     error_id = uuid.uuid4().hex[:12]
@@ -183,21 +237,11 @@ def allow_header(request: Request, default: str) -> str:
 def install_error_handlers(app: FastAPI) -> None:
     @app.exception_handler(CurvefmError)
     async def curvefm_error(request: Request, exc: CurvefmError) -> JSONResponse:
-        if isinstance(exc, InternalError):
-            return internal_error_response(request, exc)
-        if isinstance(exc, DiskFull):
-            return disk_full_response(request, exc)
-        return error_response(exc)
+        return project_error_response(request, exc)
 
     @app.exception_handler(OperationalError)
     async def database_error(request: Request, exc: OperationalError) -> JSONResponse:
-        """The records' database did not answer (gone, or held by another writer past its busy timeout): 503; its
-        disk is full: 507."""
-        full = disk_full_error(exc)
-        if full is not None:
-            return disk_full_response(request, full)
-        reason = " ".join(str(exc.orig).split())[:200]
-        return error_response(Unavailable(f"the records' database did not answer ({reason}); try again"))
+        return project_error_response(request, outage(exc))
 
     @app.exception_handler(ClientDisconnect)
     async def client_gone(request: Request, exc: ClientDisconnect) -> Response:
