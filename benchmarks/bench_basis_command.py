@@ -5,8 +5,8 @@ so the basis is computed and written), and (b) the plain pipeline in its own pro
 read the mesh (curvefm's reader), the cotangent Laplacian and lumped mass of the unit-area mesh, scipy's
 ``eigsh(L, k, M=A, sigma=-0.01)``. Both run with the BLAS threads the command sets itself (one, unless
 ``OPENBLAS_NUM_THREADS`` etc. are set), alternating (a) (b) (a) (b) ..., ``--repeats`` times; wall seconds
-from the start of the process to its exit, peak resident memory of each process (``wait4``), and the ratio
-(a) / (b) of each pair with its spread.
+from the start of the process to its exit, its CPU seconds and peak resident memory (``wait4``), and the ratio
+(a) / (b) of each pair with its spread (wall seconds; on a loaded machine the CPU seconds say more).
 
 ``breakdown``: one more run of the command under cProfile: where its time goes (imports = the whole run less
 ``main``; reading, the Laplacian, the eigensolver and its parts, writing the store's files). Profiling slows
@@ -82,7 +82,7 @@ def write_mesh(size: str, folder: Path) -> Path:
 
 
 def run_process(command: list[str], env: dict[str, str]) -> dict:
-    """Wall seconds and peak resident memory of one child process (its stdout/stderr discarded)."""
+    """Wall seconds, CPU seconds and peak resident memory of one child process (its stdout/stderr discarded)."""
     with tempfile.TemporaryFile() as stderr:  # a file, not a pipe: a full pipe would stop the child
         start = time.perf_counter()
         process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=stderr, env=env)
@@ -91,7 +91,8 @@ def run_process(command: list[str], env: dict[str, str]) -> dict:
         if os.waitstatus_to_exitcode(status) != 0:
             stderr.seek(0)
             sys.exit(f"{' '.join(command)} failed:\n{stderr.read().decode(errors='replace')[-3000:]}")
-    return {"s": round(seconds, 2), "peak_gb": round(usage.ru_maxrss / 2**20, 2)}
+    cpu = usage.ru_utime + usage.ru_stime  # with the children it waited for (the command's slice worker)
+    return {"s": round(seconds, 2), "cpu_s": round(cpu, 2), "peak_gb": round(usage.ru_maxrss / 2**20, 2)}
 
 
 def command_line(path: Path, k: int, data: str, params: str) -> list[str]:
@@ -104,9 +105,14 @@ def bench_size(path: Path, k: int, repeats: int, params: str, env: dict[str, str
         ours = run_process(command_line(path, k, str(work / f"data-{path.stem}-{run}"), params), env)
         plain_command = [sys.executable, "-m", "benchmarks.bench_basis_command", "--plain", str(path), "--k", str(k)]
         plain = run_process(plain_command, env)
-        runs.append({"command": ours, "plain": plain, "ratio": round(ours["s"] / plain["s"], 3)})
-    ratios = sorted(r["ratio"] for r in runs)
-    return {"runs": runs, "ratio_min_median_max": [ratios[0], ratios[len(ratios) // 2], ratios[-1]]}
+        ratio, cpu_ratio = round(ours["s"] / plain["s"], 3), round(ours["cpu_s"] / plain["cpu_s"], 3)
+        runs.append({"command": ours, "plain": plain, "ratio": ratio, "cpu_ratio": cpu_ratio})
+    return {"runs": runs} | {f"{key}_min_median_max": _spread([r[key] for r in runs]) for key in ("ratio", "cpu_ratio")}
+
+
+def _spread(values: list[float]) -> list[float]:
+    values = sorted(values)
+    return [values[0], values[len(values) // 2], values[-1]]
 
 
 def breakdown(path: Path, k: int, params: str, env: dict[str, str], work: Path) -> dict:
