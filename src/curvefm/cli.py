@@ -15,9 +15,9 @@ from dataclasses import fields
 from pathlib import Path
 
 from curvefm.errors import CurvefmError, InternalError, InvalidInput, disk_full_error
-from curvefm.fmap import DEFAULT_K
+from curvefm.limits import SessionLimits
 from curvefm.runtime import limit_blas_threads
-from curvefm.session import SessionLimits
+from curvefm.spectral import DEFAULT_K
 
 
 def progress_bar(description: str):

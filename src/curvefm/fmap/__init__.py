@@ -41,8 +41,9 @@ from curvefm.fmap.maps import EffectiveSolve, FunctionalMaps, Hints
 from curvefm.fmap.reference_solvers import conjugate_gradient_solve, quasi_newton_solve
 from curvefm.fmap.restriction import DEFAULT_SAMPLES, restrict, restriction_operator
 from curvefm.fmap.round_trip import RoundTripQuality
-from curvefm.fmap.solver import DEFAULT_ALPHA, DEFAULT_K, CurveMapSolver
+from curvefm.fmap.solver import DEFAULT_ALPHA, CurveMapSolver
 from curvefm.fmap.transfer import FunctionTransfer, transfer
+from curvefm.spectral import DEFAULT_K
 
 __all__ = [
     "CURVES_ALONE_FROM",

@@ -44,10 +44,9 @@ from curvefm.errors import Conflict, InvalidInput, NotFound
 from curvefm.fmap.column_solve import Prior, parallel_pays_off, solve_both, solve_columns
 from curvefm.fmap.maps import EffectiveSolve
 from curvefm.fmap.restriction import DEFAULT_SAMPLES, restrict
-from curvefm.spectral import Basis
+from curvefm.spectral import DEFAULT_K, Basis
 
 DEFAULT_ALPHA = 100.0  # chosen in docs/decisions.md#choosing-alpha (experiments/alpha.py)
-DEFAULT_K = 120  # chosen in docs/decisions.md#map-sizes
 RESUM_AFTER = 1e4
 """Subtracting a curve's products leaves rounding of about 1e-16 of its weight in the sums; once the weight
 removed since they were last summed exactly exceeds this many times the weight held, they are summed again

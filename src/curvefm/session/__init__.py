@@ -10,10 +10,12 @@ curves a user draws, kept as a record on disk and, in a long-running process, li
   fixed set of locks;
 * ``editing``: :class:`SessionEditor`, the operations (create, add / replace / remove a curve, maps,
   transfer, the maps' round-trip quality), each edit written to disk before it returns;
-* ``limits``: :class:`SessionLimits`, the configurable bounds on what one request may ask (waypoints, path
-  vertices, curves, ``k``).
+* :class:`SessionLimits` (from :mod:`curvefm.limits`, outside the package so that the command line reads the
+  ``serve`` options without importing the session domain): the configurable bounds on what one request may ask
+  (waypoints, path vertices, curves, ``k``).
 """
 
+from curvefm.limits import SessionLimits
 from curvefm.session.curves import (
     EXAMPLE_PATHS,
     MAX_VERTEX_ID,
@@ -38,7 +40,6 @@ from curvefm.session.editing import (
     check_revision,
     source_function,
 )
-from curvefm.session.limits import SessionLimits
 from curvefm.session.live import (
     DEFAULT_LOCK_TIMEOUT_S,
     LiveSession,

@@ -27,10 +27,10 @@ from curvefm import registry
 from curvefm.errors import Conflict, NotFound, RevisionMismatch, StaleRevision, shown
 from curvefm.fmap import EffectiveSolve, FunctionTransfer, RoundTripQuality
 from curvefm.geometry import DisplayMesh, Mesh, texture_coordinates
+from curvefm.limits import SessionLimits
 from curvefm.pointwise import suggest_curve
 from curvefm.registry import Plugin
 from curvefm.session.curves import CurveSpec, trace_pair
-from curvefm.session.limits import SessionLimits
 from curvefm.session.live import LiveSession, LiveSessions
 from curvefm.session.record import NAME_LENGTH, CurveRecord, Energy, SessionCreate, SessionRecord, Sharing
 from curvefm.session.restore import MissingBasis, basis_available, basis_needs, internal_paths, stated_solve

@@ -7,7 +7,7 @@ The eigensolvers' tuning constants and building blocks (``SIGMA``, ``BLOCK``, ``
 :mod:`curvefm.spectral.eigensolver` and :mod:`curvefm.spectral.multires`.
 """
 
-from curvefm.spectral.basis import Basis, check_k, max_k
+from curvefm.spectral.basis import DEFAULT_K, Basis, check_k, max_k
 from curvefm.spectral.descriptors import (
     curve_function,
     energy_filters,
@@ -29,6 +29,7 @@ from curvefm.spectral.shape_pair import ShapePair
 
 __all__ = [
     "DEFAULT_BASIS",
+    "DEFAULT_K",
     "Basis",
     "EigenError",
     "LaplaceBeltramiParams",

@@ -15,6 +15,8 @@ import numpy as np
 
 from curvefm.errors import Conflict, InvalidInput
 
+DEFAULT_K = 120  # basis and map size, the paper's; chosen in docs/decisions.md#map-sizes
+
 
 @dataclass(frozen=True, eq=False)
 class Basis:

@@ -20,10 +20,11 @@ measured while other jobs ran, so absolute times are 3-9x a quiet machine's; the
   the 22 minutes. CHOLMOD: 24.6 M nonzeros (296 MB), 48 s, peak 0.85 GB for the process.
 * The Lanczos basis was not the problem: ``np.empty`` touches only the pages used (368 of 680 vectors).
 
-Large meshes can be sliced by eigenvalue index over child processes, e.g. ``[0, k/2)`` with the shift below
-the spectrum and ``[k/2, k)`` with a shift in its middle (Weyl's law). The number of eigenvalues below such a
-shift is the inertia of its factorisation (Sylvester), so the slices meet exactly: no gap, no overlap. That
-only pays with a second idle core, so by default it is used only when the load average leaves one.
+Large meshes can be sliced by eigenvalue index over processes (this one and children), e.g. ``[0, k/2)`` with
+the shift below the spectrum and ``[k/2, k)`` with a shift in its middle (Weyl's law). The number of eigenvalues
+below such a shift is the inertia of its factorisation (Sylvester), so the slices meet exactly: no gap, no
+overlap. That only pays with a second idle core, so by default it is used only when the load average leaves at
+least half of one: where that is wrong it costs the child's start, where a core is left idle half the solver's time.
 """
 
 from __future__ import annotations
@@ -56,9 +57,13 @@ SIGMA = -0.01  # the shift of the plain call; L - SIGMA*A is positive definite
 # chosen in docs/decisions.md#eigensolver
 BLOCK = 16  # at 110k, 16 right-hand sides a solve beat 8 (0.51x vs 0.55x the plain call)
 MAX_RESTARTS = 20
+# chosen in docs/decisions.md#eigensolver
+REORTHOGONALISE_BELOW = 0.1  # at 28k a block's first pass kept >= 0.17 of each column but where one was invariant
 RESTART_ROWS = 65_536
 # chosen in docs/decisions.md#eigensolver
 PARALLEL_MIN_VERTICES = 15_000  # below this, starting two Python processes costs about what it saves
+# chosen in docs/decisions.md#eigensolver
+IDLE_CORE = 0.5  # the command's own benchmark keeps the 1-minute load average at about 1 on two cores
 
 
 class EigenError(InternalError):
@@ -70,8 +75,9 @@ def smallest_eigenpairs(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Return ``(evals, evecs)``: the k smallest eigenvalues, ascending, and mass-orthonormal eigenvectors.
 
-    ``workers``: 1 computes in this process; p > 1 slices the spectrum over p child processes. Default: 2
-    for at least ``PARALLEL_MIN_VERTICES`` vertices when the load average leaves a core idle, else 1.
+    ``workers``: 1 computes in this process; p > 1 slices the spectrum over this process and p - 1 child
+    processes. Default: 2 for at least ``PARALLEL_MIN_VERTICES`` vertices when the load average leaves at least
+    ``IDLE_CORE`` of a core idle, else 1.
     ``tol``: relative residual of the shift-inverted Ritz pairs; eigenvalue errors are about its square.
     """
     L = sp.csr_matrix(L, dtype=np.float64)
@@ -80,7 +86,7 @@ def smallest_eigenpairs(
     if not 0 < k < n:
         raise InvalidInput(f"need 0 < k < n vertices, got k={k}, n={n}")
     if workers is None:
-        workers = 2 if n >= PARALLEL_MIN_VERTICES and k >= 16 and _idle_cores() >= 1 else 1
+        workers = 2 if n >= PARALLEL_MIN_VERTICES and k >= 16 and _idle_cores() >= IDLE_CORE else 1
     if n <= max(4 * k + 10 * BLOCK, 600):  # too small for a useful Krylov space
         return sla.eigh(L.toarray(), np.diag(mass), subset_by_index=[0, k - 1])
     if workers >= 2:
@@ -180,12 +186,18 @@ def block_lanczos(
 
 def _orthogonalise(v: np.ndarray, w: np.ndarray) -> np.ndarray:
     """Remove from ``w`` (in place) its components along the orthonormal columns of ``v``; return them.
-    Two classical Gram-Schmidt passes ("twice is enough"), each two matrix-matrix products."""
+
+    Classical Gram-Schmidt, each pass two matrix-matrix products, and a second pass ("twice is enough") only where
+    the first cancelled a column below ``REORTHOGONALISE_BELOW`` of its norm: the rounding a pass leaves grows like
+    the inverse of that fraction (the Daniel-Gragg-Kaufman-Stewart test, with Rutishauser's factor 10)."""
+    norms = np.linalg.norm(w, axis=0)
     h = v.T @ w
     w -= v @ h
-    h2 = v.T @ w
-    w -= v @ h2
-    return h + h2
+    if np.any(np.linalg.norm(w, axis=0) < REORTHOGONALISE_BELOW * norms):
+        h2 = v.T @ w
+        w -= v @ h2
+        h += h2
+    return h
 
 
 def _thick_restart(
@@ -258,25 +270,35 @@ def _sliced(L: sp.csr_matrix, mass: np.ndarray, k: int, tol: float, slices: int)
 
 
 def _in_subprocesses(jobs: list[tuple[Any, ...]]) -> list[tuple[np.ndarray, np.ndarray]]:
-    # Child processes with single-threaded BLAS (set before numpy loads; this process's BLAS threads cannot be
-    # limited, and two solver threads each driving a 2-thread BLAS thrash 2 cores); not multiprocessing: no
-    # fork of a threaded server, and daemonic workers may not have children
+    """``index_range(*job)`` for each job: the first in this process, each other one in a child process started
+    before it, so that the children's start (Python, numpy and scipy: about 0.4 s) overlaps this process's work."""
+    from threadpoolctl import threadpool_limits  # here: a slice worker does not need it
+
+    # Child processes with single-threaded BLAS (set before numpy loads), this process's limited while they run:
+    # two solvers each driving a 2-thread BLAS thrash 2 cores. Not multiprocessing: no fork of a threaded server,
+    # and daemonic workers may not have children
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")
     command = [sys.executable, "-P", os.path.abspath(__file__)]
     pipe = subprocess.PIPE
-    procs = [subprocess.Popen(command, stdin=pipe, stdout=pipe, stderr=pipe, env=env) for _ in jobs]
+    procs = [subprocess.Popen(command, stdin=pipe, stdout=pipe, stderr=pipe, env=env) for _ in jobs[1:]]
+    pool = ThreadPoolExecutor(max(len(procs), 1))
     try:
-        with ThreadPoolExecutor(len(procs)) as pool:
-            outputs = list(pool.map(lambda p, job: p.communicate(pickle.dumps(job, protocol=5)), procs, jobs))
+        talks = [
+            pool.submit(p.communicate, pickle.dumps(job, protocol=5)) for p, job in zip(procs, jobs[1:], strict=True)
+        ]
+        with threadpool_limits(1):
+            first = index_range(*jobs[0])
+        outputs = [talk.result() for talk in talks]
     finally:
         for p in procs:
             if p.poll() is None:
                 p.kill()
                 p.wait()
+        pool.shutdown()
     for p, (_, err) in zip(procs, outputs, strict=True):
         if p.returncode != 0:
             raise EigenError(f"worker exited with {p.returncode}: {err.decode(errors='replace')[-2000:]}")
-    return [pickle.loads(out) for out, _ in outputs]
+    return [first, *(pickle.loads(out) for out, _ in outputs)]
 
 
 if __name__ == "__main__":  # a slice worker: one job from stdin, its eigenpairs to stdout
