@@ -9,10 +9,12 @@ The eigensolvers' tuning constants and building blocks (``SIGMA``, ``BLOCK``, ``
 
 from curvefm.spectral.basis import Basis, check_k, max_k
 from curvefm.spectral.descriptors import (
+    Quadrature,
     curve_function,
     energy_filters,
     multiplication_operators,
     normalised,
+    scan_quadrature,
     wave_kernel_map_coefficients,
     wave_kernel_maps,
     wave_kernel_signature,
@@ -32,6 +34,7 @@ __all__ = [
     "Basis",
     "EigenError",
     "LaplaceBeltramiParams",
+    "Quadrature",
     "ShapePair",
     "check_k",
     "curve_function",
@@ -42,6 +45,7 @@ __all__ = [
     "multires_eigenpairs",
     "multiplication_operators",
     "normalised",
+    "scan_quadrature",
     "smallest_eigenpairs",
     "wave_kernel_map_coefficients",
     "wave_kernel_maps",
