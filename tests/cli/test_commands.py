@@ -3,6 +3,7 @@
 import json
 import subprocess
 import sys
+import zipfile
 
 import numpy as np
 import pytest
@@ -60,6 +61,10 @@ def test_match_writes_maps_and_a_textured_target(pair, tmp_path):
     textured = load_mesh(out / "target_textured.obj")
     assert textured.uv is not None and textured.n_vertices == target.n_vertices
     assert np.isfinite(textured.uv).all() and np.ptp(textured.uv[:, 1]) > 0.5
+    assert textured.texture_path is not None  # its material and texture lie beside it
+    with zipfile.ZipFile(out / "target_textured.zip") as archive:  # the same three files, written once
+        for name in ("target_textured.obj", "target_textured.mtl", "target_textured.png"):
+            assert archive.read(name) == (out / name).read_bytes()
 
 
 def test_basis_is_computed_once_then_found_by_match(pair, tmp_path):

@@ -153,6 +153,21 @@ def test_the_landmark_prior_pulls_the_map_towards_no17_from_the_endpoints(shapes
         assert np.linalg.norm(solver.C_MN - prior.C_MN) < 0.5 * np.linalg.norm(without - prior.C_MN)
 
 
+def test_on_scans_the_prior_integrates_its_operators_on_samples(shapes, paths, monkeypatch):
+    curves = [(pm, pn, 1.0) for pm, pn in paths[:3]]
+    with solver_on(shapes, prior_weight=5.0) as solver:  # ellipsoids are below QUADRATURE_FROM_VERTICES
+        solver.add_curves(curves)
+        every_vertex = solver.C_MN
+    monkeypatch.setattr("curvefm.spectral.descriptors.QUADRATURE_FROM_VERTICES", 0)
+    monkeypatch.setattr("curvefm.spectral.descriptors.QUADRATURE_POINTS", shapes[0].n_vertices // 2)
+    with solver_on(shapes, prior_weight=5.0) as solver:
+        solver.add_curves(curves)
+        sampled = solver.C_MN
+    change = np.linalg.norm(sampled - every_vertex) / np.linalg.norm(every_vertex)
+    # the same prior to within its operators' quadrature on half the vertices (not the cached full-sum parts)
+    assert 0 < change < 0.05
+
+
 def test_an_interactive_solver_computes_the_prior_in_the_background(shapes, paths):
     curves = [(pm, pn, 1.0) for pm, pn in paths[:2]]
     with ThreadPoolExecutor(1) as background, solver_on(shapes) as at_once:
@@ -176,7 +191,7 @@ def test_an_interactive_solver_computes_the_prior_in_the_background(shapes, path
 def test_an_edit_stops_a_running_prior_for_other_endpoints_before_the_maps_are_read(shapes, paths, monkeypatch):
     asked_for, gave_up = [], threading.Event()
 
-    def prior_until_unwanted(basis_M, basis_N, landmarks, wanted, extra=None):  # stands in for a long computation
+    def prior_until_unwanted(basis_M, basis_N, landmarks, wanted, extra=None, quadratures=None):  # a long computation
         asked_for.append(len(landmarks))
         deadline = time.monotonic() + 30
         while wanted() and time.monotonic() < deadline:
@@ -201,7 +216,7 @@ def test_after_a_prior_gives_up_for_an_edit_the_current_endpoints_prior_still_la
     page would poll for it) until the next edit."""
     real_prior, running = combined.landmark_maps, threading.Event()
 
-    def prior_that_takes_a_while(basis_M, basis_N, landmarks, wanted=lambda: True, extra=None):
+    def prior_that_takes_a_while(basis_M, basis_N, landmarks, wanted=lambda: True, extra=None, quadratures=None):
         running.set()
         for _ in range(200):
             if not wanted():

@@ -22,6 +22,7 @@ from curvefm.spectral import (
     ShapePair,
     curve_function,
     multiplication_operators,
+    scan_quadrature,
     wave_kernel_maps,
     wave_kernel_signature,
 )
@@ -136,6 +137,20 @@ def test_curve_function_and_multiplication_operators(pair):
     np.testing.assert_allclose(ops[1], ops[1].T, atol=1e-12)
     with pytest.raises(CurvefmError, match="zero length"):
         curve_function(M.vertices, np.array([3, 3]))
+
+
+def test_scan_quadrature_integrates_the_operators_on_samples(pair, monkeypatch):
+    M, bM, _, _ = pair
+    assert scan_quadrature(M.vertices, bM.mass) is None  # below QUADRATURE_FROM_VERTICES: every vertex, as before
+    monkeypatch.setattr("curvefm.spectral.descriptors.QUADRATURE_FROM_VERTICES", 0)
+    quadrature = scan_quadrature(M.vertices, bM.mass, points=M.n_vertices // 3)
+    assert quadrature is not None and len(quadrature.rows) == M.n_vertices // 3
+    assert quadrature.weights.sum() == pytest.approx(1.0) and np.all(quadrature.weights > 0)
+    functions = np.c_[np.ones(M.n_vertices), bM.evecs[:, 1:6]]
+    full = multiplication_operators(bM, functions, 10)
+    sampled = multiplication_operators(bM, functions, 10, quadrature)
+    relative = np.linalg.norm(sampled - full, axis=(1, 2)) / np.linalg.norm(full, axis=(1, 2))
+    assert relative.max() < 0.1 and not np.allclose(sampled, full)  # a third of the vertices, smooth products
 
 
 @pytest.mark.parametrize(

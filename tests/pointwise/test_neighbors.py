@@ -35,9 +35,12 @@ def embedding(faust_bases, k: int) -> tuple[np.ndarray, np.ndarray]:
     return basis_M.evecs[:, :k] @ C_MN.T, basis_N.evecs[:, :k]
 
 
-@pytest.mark.parametrize("k", [20, 120])
-def test_approximate_search_finds_the_nearest_row_for_99_percent_of_queries(faust_bases, k):
+@pytest.mark.parametrize("k, scan", [(20, False), (120, False), (120, True)])
+def test_approximate_search_finds_the_nearest_row_for_99_percent_of_queries(faust_bases, k, scan, monkeypatch):
     data, queries = embedding(faust_bases, k)
+    if scan:  # as a scan of a million vertices searches: fewer probed cells
+        monkeypatch.setattr(neighbors, "SCAN_ROWS", len(data))
+        assert neighbors.probed_cells(len(data)) == neighbors.SCAN_PROBED_CELLS < neighbors.PROBED_CELLS
     exact = nearest_neighbors(data, queries, "exact")
     found = nearest_neighbors(data, queries, "approximate")
     # by distance, in float64: float32 exact search itself misses near-ties, so an index may differ harmlessly

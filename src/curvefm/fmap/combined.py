@@ -65,6 +65,7 @@ import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor, Future, wait
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any, TypeVar, cast
 
 import numpy as np
@@ -76,7 +77,7 @@ from curvefm.fmap.landmark_prior import NO17Settings, NoLongerWanted, landmark_m
 from curvefm.fmap.maps import EffectiveSolve, FunctionalMaps, curve_endpoints
 from curvefm.fmap.solver import CurveMapSolver, CurveTerm, basis_digest, cross_products
 from curvefm.geometry import Mesh, curve_side
-from curvefm.spectral import Basis, energy_filters, normalised, wave_kernel_signature
+from curvefm.spectral import Basis, Quadrature, energy_filters, normalised, scan_quadrature, wave_kernel_signature
 
 # Chosen in docs/decisions.md#the-combined-energys-weights (the sweep in experiments/combined_weights.py):
 # 7% above the sweep's best mean (kernel weight 1000), which was 1.5-4x worse than the curve energy with one curve
@@ -462,11 +463,20 @@ class CombinedMapSolver(CurveMapSolver):
     def _landmark_maps(self, inputs: PriorInputs, wanted: Callable[[], bool] = lambda: True) -> FunctionalMaps:
         """NO17's maps from the endpoints, with the sided curves' sides where these agree under the map."""
         pairs, sides = _pairs(inputs.landmarks), self._curve_sides(inputs)
+        bases, quadratures = (self.basis_M, self.basis_N), self._quadratures
         if sides is not None:
-            maps = landmark_maps(self.basis_M, self.basis_N, pairs, wanted=wanted, extra=sides)
+            maps = landmark_maps(*bases, pairs, wanted=wanted, extra=sides, quadratures=quadratures)
             if sides_agree(maps.C_MN, self.basis_M, self.basis_N, sides):
                 return maps
-        return landmark_maps(self.basis_M, self.basis_N, pairs, wanted=wanted)
+        return landmark_maps(*bases, pairs, wanted=wanted, quadratures=quadratures)
+
+    @cached_property
+    def _quadratures(self) -> tuple[Quadrature | None, Quadrature | None]:
+        """Scans' samples for the prior's multiplication operators (:func:`curvefm.spectral.scan_quadrature`)."""
+        return (
+            scan_quadrature(self.vertices_M, self.basis_M.mass),
+            scan_quadrature(self.vertices_N, self.basis_N.mass),
+        )
 
     def _curve_sides(self, inputs: PriorInputs) -> tuple[np.ndarray, np.ndarray] | None:
         """Each sided curve's :func:`curve_side` on both shapes (vertices x curves), or None."""

@@ -40,6 +40,7 @@ from curvefm.fmap.maps import FunctionalMaps
 from curvefm.fmap.solver import basis_digest
 from curvefm.spectral import (
     Basis,
+    Quadrature,
     multiplication_operators,
     normalised,
     wave_kernel_map_coefficients,
@@ -91,8 +92,11 @@ def descriptor_functions(basis: Basis, landmarks: np.ndarray, settings: NO17Sett
     return normalised(basis, np.hstack(columns))
 
 
-def descriptor_part(basis: Basis, functions: np.ndarray, k: int) -> DescriptorPart:
-    return DescriptorPart(basis.truncated(k).project(functions), multiplication_operators(basis, functions, k))
+def descriptor_part(
+    basis: Basis, functions: np.ndarray, k: int, quadrature: Quadrature | None = None
+) -> DescriptorPart:
+    operators = multiplication_operators(basis, functions, k, quadrature)
+    return DescriptorPart(basis.truncated(k).project(functions), operators)
 
 
 def no17_maps(
@@ -123,20 +127,28 @@ def landmark_maps(
     settings: NO17Settings = NO17Settings(),
     wanted: Callable[[], bool] = lambda: True,
     extra: tuple[np.ndarray, np.ndarray] | None = None,
+    quadratures: tuple[Quadrature | None, Quadrature | None] = (None, None),
 ) -> FunctionalMaps:
     """NO17's maps from corresponding ``landmarks`` (m x 2 internal vertex ids), with cached descriptor parts.
 
     ``extra``: more corresponding descriptors (vertices x d on M and on N, such as the sides of a curve,
     :func:`curvefm.geometry.curve_side`), added with unit norm each (not cached).
+    ``quadratures``: where given, each shape's multiplication operators are integrated on its samples
+    (:func:`curvefm.spectral.scan_quadrature`).
     Raises :class:`NoLongerWanted` as soon as ``wanted()`` turns false (parts computed until then stay cached).
     """
     k = min(settings.k, basis_M.k, basis_N.k)
     settings = replace(settings, k=k)
     bases = (basis_M, basis_N)
-    sides = [_descriptors(basis, landmarks[:, side], settings, wanted) for side, basis in enumerate(bases)]
+    sides = [
+        _descriptors(basis, landmarks[:, side], settings, wanted, quadratures[side]) for side, basis in enumerate(bases)
+    ]
     if extra is not None:
         _check(wanted)
-        added = [descriptor_part(basis, normalised(basis, f), k) for basis, f in zip(bases, extra, strict=True)]
+        added = [
+            descriptor_part(basis, normalised(basis, f), k, quadrature)
+            for basis, f, quadrature in zip(bases, extra, quadratures, strict=True)
+        ]
         sides = [_joined(part, more) for part, more in zip(sides, added, strict=True)]
     return no17_maps(sides[0], sides[1], basis_M, basis_N, settings, wanted)
 
@@ -151,18 +163,25 @@ def _check(wanted: Callable[[], bool]) -> None:
 
 
 def _descriptors(
-    basis: Basis, landmarks: np.ndarray, settings: NO17Settings, wanted: Callable[[], bool]
+    basis: Basis,
+    landmarks: np.ndarray,
+    settings: NO17Settings,
+    wanted: Callable[[], bool],
+    quadrature: Quadrature | None,
 ) -> DescriptorPart:
     """The signatures' part and each landmark's, from the cache where there."""
     digest = basis_digest(basis)
     parts = []
     for key in [None] + [int(vertex) for vertex in landmarks]:
         _check(wanted)
-        parts.append(_PARTS.get((digest, key, settings), partial(_part, basis, key, settings)))
+        cache_key = (digest, key, settings, quadrature is not None)
+        parts.append(_PARTS.get(cache_key, partial(_part, basis, key, settings, quadrature)))
     return _joined(*parts)
 
 
-def _part(basis: Basis, landmark: int | None, settings: NO17Settings) -> DescriptorPart:
+def _part(
+    basis: Basis, landmark: int | None, settings: NO17Settings, quadrature: Quadrature | None = None
+) -> DescriptorPart:
     """The signatures (``landmark`` None) or the kernel maps at one landmark, of unit norm each.
 
     A landmark's kernel maps lie in the span of the first ``spectrum`` eigenfunctions, with coefficients ``c``,
@@ -173,20 +192,22 @@ def _part(basis: Basis, landmark: int | None, settings: NO17Settings) -> Descrip
     spectrum = min(settings.spectrum, basis.k)
     if landmark is None:
         functions = normalised(basis, wave_kernel_signature(basis.truncated(spectrum), **settings.filters()))
-        return descriptor_part(basis, functions, settings.k)
+        return descriptor_part(basis, functions, settings.k, quadrature)
     leading = Basis(basis.evals[:spectrum], basis.evecs[:, :spectrum], basis.mass)  # a view: one row is read
     coefficients = wave_kernel_map_coefficients(leading, np.array([landmark]), **settings.filters())
     operators, gram = _EIGEN_PRODUCTS.get(
-        (basis_digest(basis), spectrum, settings.k), lambda: _eigen_products(basis.truncated(spectrum), settings.k)
+        (basis_digest(basis), spectrum, settings.k, quadrature is not None),
+        lambda: _eigen_products(basis.truncated(spectrum), settings.k, quadrature),
     )
     coefficients = coefficients / np.sqrt(np.maximum(np.sum(coefficients * (gram @ coefficients), axis=0), 1e-300))
     return DescriptorPart(gram[: settings.k] @ coefficients, np.tensordot(coefficients, operators, axes=(0, 0)))
 
 
-def _eigen_products(spectral: Basis, k: int) -> tuple[np.ndarray, np.ndarray]:
+def _eigen_products(spectral: Basis, k: int, quadrature: Quadrature | None) -> tuple[np.ndarray, np.ndarray]:
     """The multiplication operators of ``spectral``'s eigenfunctions on the first ``k`` (spectral.k x k x k) and
     the eigenfunctions' Gram matrix under the mass (the identity up to the eigensolver's accuracy)."""
-    return multiplication_operators(spectral, spectral.evecs, k), spectral.project(spectral.evecs)
+    operators = multiplication_operators(spectral, spectral.evecs, k, quadrature)
+    return operators, spectral.project(spectral.evecs)
 
 
 def _quasi_newton(energy: DescriptorEnergy, max_iter: int) -> np.ndarray:

@@ -22,7 +22,9 @@ from curvefm.geometry.mesh_io import (
     SUPPORTED_FORMATS,
     load_mesh,
     save_mesh,
+    save_textured,
     save_textured_zip,
+    zip_files,
 )
 from curvefm.geometry.sampling import farthest_point_sampling
 from curvefm.geometry.texture import checkerboard_image, cylindrical_uv, texture_coordinates
@@ -55,7 +57,9 @@ __all__ = [
     "per_vertex_uv",
     "robust_laplacian",
     "save_mesh",
+    "save_textured",
     "save_textured_zip",
     "shortest_path",
     "texture_coordinates",
+    "zip_files",
 ]

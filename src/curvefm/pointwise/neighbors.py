@@ -48,6 +48,11 @@ APPROXIMATE_FROM_PAIRS = 200_000_000
 CELLS_PER_SQRT_ROW = 2  # k-means cells: 2 sqrt(rows) (664 at 110k, 1,328 at 440k)
 TRAINING_ROWS_PER_CELL = 40  # faiss asks for at least 39 points a cell
 PROBED_CELLS = 8  # cells each query searches
+# chosen in docs/decisions.md#nearest-neighbour-search
+SCAN_ROWS = 1_000_000
+"""From this many data rows on (scans of a million vertices and more) each query searches
+:data:`SCAN_PROBED_CELLS` cells: a search's cost grows as rows^1.5 at a fixed number of probes."""
+SCAN_PROBED_CELLS = 4
 #: k-means iterations to place the cells (faiss's default is 25): at 440k x 240 dimensions 10 gave the same
 #: neighbour for every query as 25, in 12 s of training instead of 34 (2026-11-23)
 KMEANS_ITERATIONS = 10
@@ -82,6 +87,11 @@ def uses_approximate(rows: int, queries: int) -> bool:
 def cell_count(rows: int) -> int:
     """k-means cells of the inverted file for ``rows`` data rows (enough training points for each)."""
     return max(1, min(round(CELLS_PER_SQRT_ROW * np.sqrt(rows)), rows // TRAINING_ROWS_PER_CELL))
+
+
+def probed_cells(rows: int) -> int:
+    """Cells each query of an approximate search over ``rows`` data rows searches."""
+    return SCAN_PROBED_CELLS if rows >= SCAN_ROWS else PROBED_CELLS
 
 
 def search_threads() -> int:
@@ -121,7 +131,7 @@ def _inverted_file_search(data: np.ndarray, queries: np.ndarray) -> np.ndarray:
     training = min(len(data), TRAINING_ROWS_PER_CELL * cells)
     index.train(data[np.random.default_rng(0).choice(len(data), training, replace=False)])
     index.add(data)
-    index.nprobe = min(PROBED_CELLS, cells)
+    index.nprobe = min(probed_cells(len(data)), cells)
     return index.search(queries, 1)[1][:, 0].astype(np.int64)
 
 

@@ -9,10 +9,12 @@ The eigensolvers' tuning constants and building blocks (``SIGMA``, ``BLOCK``, ``
 
 from curvefm.spectral.basis import DEFAULT_K, Basis, check_k, max_k
 from curvefm.spectral.descriptors import (
+    Quadrature,
     curve_function,
     energy_filters,
     multiplication_operators,
     normalised,
+    scan_quadrature,
     wave_kernel_map_coefficients,
     wave_kernel_maps,
     wave_kernel_signature,
@@ -33,6 +35,7 @@ __all__ = [
     "Basis",
     "EigenError",
     "LaplaceBeltramiParams",
+    "Quadrature",
     "ShapePair",
     "check_k",
     "curve_function",
@@ -43,6 +46,7 @@ __all__ = [
     "multires_eigenpairs",
     "multiplication_operators",
     "normalised",
+    "scan_quadrature",
     "smallest_eigenpairs",
     "wave_kernel_map_coefficients",
     "wave_kernel_maps",

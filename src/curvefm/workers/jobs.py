@@ -49,7 +49,8 @@ def refine(data_dir: str, session: dict, converter: str = "nearest-neighbor", pa
 
     Writes ``map_target_to_source.txt`` / ``map_source_to_target.txt`` (file ids, as ``curvefm match``), the
     same maps as ``p2p_target_to_source.npy`` / ``p2p_source_to_target.npy``, both functional maps, all four in
-    ``maps.mat`` (MATLAB), ``target_textured.obj`` and ``target_textured.zip`` (OBJ + MTL + texture image).
+    ``maps.mat`` (MATLAB), ``target_textured.obj`` with its ``.mtl`` and ``.png``, and the three in
+    ``target_textured.zip``.
     The result carries the maps' intrinsic quality figures and, for a refining converter, which maps were kept
     (``kept``: ``refined``, ``stopped`` or ``initial``) and why (``reason``); see :func:`curvefm.matching.convert`.
     The functional maps written are a refinement's at its final size (those its kept pointwise maps induce,
