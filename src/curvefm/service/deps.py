@@ -110,6 +110,7 @@ def start_services(settings: Settings) -> Services:
         size=settings.live_sessions,
         display_vertices=settings.display_vertices,
         prior_max_vertices=settings.prior_max_vertices,
+        guided_trace_vertices=settings.guided_trace_vertices,
     )
     # require_plugin's errors list the installed plugins
     sessions = SessionEditor(records, live, find_plugin=require_plugin, limits=settings.session_limits)
