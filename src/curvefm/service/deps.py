@@ -241,6 +241,7 @@ def submit_basis(
         "k": k,
         "plugin": plugin,
         "params": params,
+        "display_vertices": services.settings.display_vertices,
     }
     dedupe_key = f"basis:{mesh_id}:{plugin}:{k}:{params_key(params)}"
     return services.queue.submit("basis", kwargs, dedupe_key=dedupe_key, owner=owner, admit=admit)
