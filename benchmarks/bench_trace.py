@@ -15,7 +15,12 @@ the display copy: ``random``) and the ``short`` set: both times, and the guided 
 whole-mesh shortest path's. The display copy (``--display-vertices``, default 50,000) is read from the
 benchmarks' store (``CURVEFM_BENCH_DATA``) or made and stored there; the anisotropic tracer is skipped.
 
-Usage: ``python -m benchmarks.bench_trace [MESH] [--subdivide N] [--pairs N] [--seed S] [--guided]``; prints JSON.
+``--edits`` (with ``--subdivide N``) times the trace part of ``bench_ui_latency``'s edits on FAUST tr_reg_000 ->
+tr_reg_011 subdivided N times: for each of its curves between original vertices, the two traces (one a shape), on
+the whole meshes and guided, without bases (at 1.76M vertices they take 25 minutes a shape here).
+
+Usage: ``python -m benchmarks.bench_trace [MESH] [--subdivide N] [--pairs N] [--seed S] [--guided] [--edits]``; prints
+JSON.
 """
 
 from __future__ import annotations
@@ -31,8 +36,10 @@ import numpy as np
 import trimesh
 from scipy.sparse.csgraph import dijkstra
 
+from benchmarks.bench_scan import subdivided
+from benchmarks.bench_ui_latency import EDITS, SCAN_PAIR
 from benchmarks.common import bench_store
-from curvefm.geometry import build_mesh, display_graph, display_mesh, load_mesh
+from curvefm.geometry import build_mesh, display_graph, load_mesh
 from curvefm.plugins import tracers
 from curvefm.runtime import limit_blas_threads
 
@@ -72,13 +79,8 @@ def _spread(ms: list[float]) -> dict:
 
 
 def _guided(mesh, pairs: dict[str, np.ndarray], display_vertices: int) -> dict:
-    store = bench_store()
-    mesh_id = store.put_mesh(mesh)
     t0 = time.perf_counter()
-    guide = store.get_display(mesh_id, display_vertices)
-    if guide is None:
-        guide = display_mesh(mesh, display_vertices)
-        store.put_display(mesh_id, display_vertices, guide)
+    guide = _stored_guide(mesh, display_vertices)
     out: dict = {
         "display_vertices": len(guide.vertex_ids),
         "display_read_or_made_s": round(time.perf_counter() - t0, 2),
@@ -109,6 +111,32 @@ def _guided(mesh, pairs: dict[str, np.ndarray], display_vertices: int) -> dict:
     return out
 
 
+def _stored_guide(mesh, display_vertices: int):
+    store = bench_store()
+    store.put_mesh(mesh)
+    return store.ensure_display(mesh, display_vertices)
+
+
+def _edit_traces(level: int, display_vertices: int) -> dict:
+    """Both traces of each of bench_ui_latency's edits, whole and guided, on the FAUST pair subdivided ``level``."""
+    meshes = [subdivided(name, level) for name in SCAN_PAIR]
+    guides = [_stored_guide(mesh, display_vertices) for mesh in meshes]
+    for mesh, guide in zip(meshes, guides, strict=True):
+        mesh.edge_graph, guide.cells, display_graph(mesh, guide)  # noqa: B018 - what a live session prepares
+    params = tracers.GEODESIC.parse_params({})
+    whole_ms, guided_ms = [], []
+    for start, end in EDITS:
+        t0 = time.perf_counter()
+        for mesh in meshes:
+            tracers.trace_geodesic(mesh, start, end, params)
+        t1 = time.perf_counter()
+        for mesh, guide in zip(meshes, guides, strict=True):
+            tracers.trace_geodesic_guided(mesh, start, end, params, guide)
+        whole_ms.append(round(1e3 * (t1 - t0), 1))
+        guided_ms.append(round(1e3 * (time.perf_counter() - t1), 1))
+    return {"vertices": meshes[0].n_vertices, "edits": len(EDITS), "whole_ms": whole_ms, "guided_ms": guided_ms}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("mesh", nargs="?", default=str(DEFAULT_MESH))
@@ -118,7 +146,13 @@ def main() -> None:
     parser.add_argument("--subdivide", type=int, default=0, help="subdivide the mesh this many times first")
     parser.add_argument("--guided", action="store_true", help="the whole-mesh trace against the guided one")
     parser.add_argument("--display-vertices", type=int, default=50_000)
+    parser.add_argument("--edits", action="store_true", help="the traces of bench_ui_latency's edits, both shapes")
     args = parser.parse_args()
+    if args.edits:
+        result = {"benchmark": "trace --edits", **_edit_traces(args.subdivide, args.display_vertices)}
+        result |= {"date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "load": os.getloadavg()}
+        print(json.dumps(result))
+        return
     if not Path(args.mesh).is_file():
         raise SystemExit(f"mesh not found: {args.mesh} (the shared data folder is described in its README)")
 
