@@ -27,8 +27,9 @@ for L = 2, where issue 14's budget is p95 <= 150 ms). Shapes above the server's 
 110,210 vertices, 3: 440,834): ``GET /sessions/{id}/transfer?function=uv`` with one row per vertex
 (``resolution=full``) and per display vertex (``resolution=display``), interleaved, after a read that solved the
 map; and the gzipped bytes of ``GET /shapes/{id}/mesh`` for the display copy and the whole mesh, with the time of
-the first request for the copy (which makes it); and the round trips of five edits as the page sends them
-(``?carry=uv&resolution=display``: trace, solve, store and the carried texture coordinates at display rows).
+the first request for the copy (made by the basis job since issue 37, so read; before, that request made it); and
+the round trips of ten edits as the page sends them (``?carry=uv&resolution=display``: trace, solve, store and the
+carried texture coordinates at display rows; the first five are the five measured before 2026-11-28 11:30).
 
 ``--worker-memory SIZE`` runs the jobs on one ``curvefm worker`` with that memory budget (``--memory``) on a private
 ``redis-server`` instead of the server's in-process executor, and reports the worker's peak resident memory (its
@@ -79,7 +80,13 @@ LATENCY_PAIR = ("cat0.off", "cat1.off")
 LARGE_PAIR = ("david0.off", "david1.off")
 SCAN_PAIR = ("tr_reg_000", "tr_reg_011")
 FROZEN_GAP_MS = 1000
-EDITS = [[412, 5910], [3500, 6500], [1200, 4400], [2000, 6100], [800, 3100]]
+EDITS = [[412, 5910], [3500, 6500], [1200, 4400], [2000, 6100], [800, 3100]] + [
+    [100, 5200],
+    [2600, 4900],
+    [5500, 300],
+    [1700, 6700],
+    [4100, 900],
+]
 """Curves of ``--transfer-levels``' edits, between original FAUST vertices (their ids hold at every level)."""
 
 # Installed before the page's own scripts: records long tasks and the gaps between animation frames.
@@ -199,7 +206,7 @@ def ms_since(started: float) -> float:
 
 def mesh_payloads(client: httpx.Client, shape_id: str) -> dict:
     """Bytes on the wire (gzipped) of the target's mesh payload, display copy and whole; the first request for the
-    copy makes it."""
+    copy reads it (the basis job made it)."""
     found = {}
     for resolution in ("display", "full"):
         started = time.perf_counter()

@@ -5,7 +5,9 @@ one function of the work, ``run``. Each kind has its own contract class; an entr
 instance of its group's class (a converter listed under ``curvefm.tracers`` is refused when loaded):
 
 * ``curvefm.tracers``, :class:`TracerPlugin`: ``run(mesh, start, end, params) -> path``, a vertex path
-  (internal ids) from start to end whose consecutive entries share an edge.
+  (internal ids) from start to end whose consecutive entries share an edge. Optional hook ``run_guided(mesh,
+  start, end, params, guide)``: the same path sought near the mesh's display copy ``guide``
+  (:class:`~curvefm.geometry.DisplayMesh`), which live sessions call on shapes of millions of vertices.
 * ``curvefm.bases``, :class:`BasisPlugin`: ``run(mesh, k, params, progress) -> Basis``.
 * ``curvefm.converters``, :class:`ConverterPlugin`: ``run(pair, maps, params, progress) -> PointwiseMaps``,
   pointwise maps both ways from a :class:`~curvefm.spectral.ShapePair` and its functional maps. Optional
@@ -40,7 +42,7 @@ if TYPE_CHECKING:
     import numpy as np
 
     from curvefm.fmap import FunctionalMaps, Hints
-    from curvefm.geometry import Mesh
+    from curvefm.geometry import DisplayMesh, Mesh
     from curvefm.pointwise import PointwiseMaps
     from curvefm.progress import Progress
     from curvefm.spectral import Basis, ShapePair
@@ -79,6 +81,7 @@ class Plugin(Generic[P]):
 @dataclass(frozen=True)
 class TracerPlugin(Plugin[P]):
     run: Callable[[Mesh, int, int, P], np.ndarray]
+    run_guided: Callable[[Mesh, int, int, P, DisplayMesh], np.ndarray] | None = None
 
 
 @dataclass(frozen=True)

@@ -29,7 +29,7 @@ from pydantic import BaseModel
 
 from curvefm import registry
 from curvefm.errors import NotFound, shown
-from curvefm.geometry import DisplayMesh, Mesh, MeshReport
+from curvefm.geometry import DisplayMesh, Mesh, MeshReport, display_mesh
 from curvefm.progress import Progress, no_progress
 from curvefm.spectral import (
     DEFAULT_BASIS,
@@ -137,6 +137,19 @@ class Store:
                 return DisplayMesh(arrays["vertex_ids"], arrays["faces"], arrays["nearest"], int(arrays["n_vertices"]))
         except (OSError, ValueError, KeyError, EOFError):
             return None
+
+    def find_display(self, mesh: Mesh, vertex_count: int) -> DisplayMesh | None:
+        """The stored display copy of ``mesh`` made for ``vertex_count``, if one is stored and fits the mesh."""
+        found = self.get_display(mesh.content_hash, vertex_count)
+        return found if found is not None and found.n_vertices == mesh.n_vertices else None
+
+    def ensure_display(self, mesh: Mesh, vertex_count: int) -> DisplayMesh:
+        """The stored display copy of ``mesh``, or make it (seconds to minutes at scan size) and store it."""
+        found = self.find_display(mesh, vertex_count)
+        if found is None:
+            found = display_mesh(mesh, vertex_count)
+            self.put_display(mesh.content_hash, vertex_count, found)
+        return found
 
     def put_display(self, mesh_hash: str, vertex_count: int, display: DisplayMesh) -> None:
         out = io.BytesIO()

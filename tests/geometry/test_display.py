@@ -75,6 +75,13 @@ def test_rows_of_and_region_of(faust, copy):
     np.testing.assert_array_equal(region, np.isin(copy.nearest, [5, 17]))
 
 
+def test_cover_is_the_mesh_vertices_nearest_to_the_rows(faust, copy):
+    rows = np.array([0, 9, 17, len(copy.vertex_ids) - 1])
+    np.testing.assert_array_equal(copy.cover(rows), np.flatnonzero(np.isin(copy.nearest, rows)))
+    assert len(copy.cover(np.arange(len(copy.vertex_ids)))) == faust.n_vertices
+    assert len(copy.cover(np.array([], dtype=np.int64))) == 0
+
+
 def test_the_copy_is_the_same_every_time(faust, copy):
     again = display_mesh(faust, TARGET)
     np.testing.assert_array_equal(again.vertex_ids, copy.vertex_ids)
@@ -90,6 +97,17 @@ def test_live_sessions_make_a_display_copy_once_and_only_for_big_meshes(tmp_path
     assert first is live.display(shape) and len(first.vertex_ids) < faust.n_vertices
     for threshold in (0, faust.n_vertices):  # 0: never; a mesh of the threshold's size is drawn whole
         assert LiveSessions(store, sessions_of(store), display_vertices=threshold).display(shape) is None
+
+
+def test_curves_are_traced_near_a_stored_display_copy_on_meshes_of_the_threshold_and_above(tmp_path, faust):
+    store = Store(tmp_path)
+    shape = store.put_mesh(faust)
+    live = LiveSessions(store, sessions_of(store), display_vertices=TARGET, guided_trace_vertices=faust.n_vertices)
+    assert live.guide(shape) is None  # none made yet: an edit does not wait for one
+    made = store.ensure_display(faust, TARGET)
+    np.testing.assert_array_equal(live.guide(shape).vertex_ids, made.vertex_ids)
+    above = LiveSessions(store, sessions_of(store), display_vertices=TARGET, guided_trace_vertices=faust.n_vertices + 1)
+    assert above.guide(shape) is None
 
 
 def test_display_copies_are_kept_in_the_store_for_other_processes(tmp_path, faust):

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import trimesh
 from scipy.sparse.csgraph import dijkstra
 
 from curvefm import registry
 from curvefm.errors import CurvefmError
-from curvefm.geometry import build_mesh, check_edge_path, load_mesh
+from curvefm.geometry import DisplayMesh, build_mesh, check_edge_path, display_mesh, load_mesh
 from curvefm.plugins import tracers
 from curvefm.plugins.tracers import ANISOTROPIC, GEODESIC
 from curvefm.session import trace_curve
@@ -221,3 +222,63 @@ def test_bad_endpoints(plugin, bad):
         plugin.run(mesh, bad, 0, plugin.parse_params({}))
     with pytest.raises(CurvefmError, match="end vertex"):
         plugin.run(mesh, 0, bad, plugin.parse_params({}))
+
+
+# ----------------------------------------------------------------------------------------------------------
+# tracing near a display copy (big meshes)
+
+
+@pytest.fixture(scope="module")
+def fine_faust(shared_data):
+    """FAUST tr_reg_000 subdivided once (27,554 vertices) and its display copy of about 3,000."""
+    faust = load_mesh(shared_data / "faust" / "tr_reg_000.off")
+    mesh = build_mesh(*trimesh.remesh.subdivide(faust.vertices, faust.faces), name="faust-subdivided")
+    return mesh, display_mesh(mesh, 3000)
+
+
+def seeded_pairs(mesh, count: int, seed: int) -> list[tuple[int, int]]:
+    return [(int(a), int(b)) for a, b in np.random.default_rng(seed).integers(0, mesh.n_vertices, (count, 2))]
+
+
+def test_a_guided_geodesic_is_a_path_of_the_mesh_in_its_corridor_and_as_short_as_the_whole_search(fine_faust):
+    mesh, guide = fine_faust
+    for start, end in seeded_pairs(mesh, 12, 2):
+        path = tracers.trace_geodesic_guided(mesh, start, end, GEODESIC_DEFAULTS, guide)
+        assert path.dtype == np.int64 and path[0] == start and path[-1] == end
+        check_edge_path(mesh.edge_graph, path)
+        band = tracers.corridor(mesh, guide, start, end)
+        assert len(band) < 0.4 * mesh.n_vertices and np.isin(path, band).all()
+        shortest = edge_length(mesh, GEODESIC.run(mesh, start, end, GEODESIC_DEFAULTS))
+        assert shortest <= edge_length(mesh, path) <= 1.01 * shortest
+
+
+def test_trace_curve_traces_near_the_guide_it_is_given(fine_faust):
+    mesh, guide = fine_faust
+    waypoints = [int(mesh.file_ids[v]) for v in (10, 20_000, 5_000)]
+    guided = trace_curve(mesh, waypoints=waypoints, guide=guide)
+    pieces = [
+        tracers.trace_geodesic_guided(mesh, a, b, GEODESIC_DEFAULTS, guide) for a, b in ((10, 20_000), (20_000, 5_000))
+    ]
+    np.testing.assert_array_equal(guided, np.r_[pieces[0], pieces[1][1:]])
+    # a tracer without run_guided traces on the whole mesh, guide or not
+    np.testing.assert_array_equal(
+        trace_curve(mesh, waypoints=waypoints, tracer="anisotropic", guide=guide),
+        trace_curve(mesh, waypoints=waypoints, tracer="anisotropic"),
+    )
+
+
+def test_a_corridor_that_falls_apart_leaves_the_search_to_the_whole_mesh(fine_faust):
+    mesh, guide = fine_faust
+    start, end = seeded_pairs(mesh, 1, 3)[0]
+    to_start = dijkstra(mesh.edge_graph, directed=True, indices=start)
+    # the vertices half way between the ends, given to a display vertex far from both: a band no path avoids
+    middle = np.abs(to_start - 0.5 * to_start[end]) < 0.05 * to_start[end]
+    far = guide.nearest[int(np.argmax(np.minimum(to_start, dijkstra(mesh.edge_graph, directed=True, indices=end))))]
+    cut = DisplayMesh(guide.vertex_ids, guide.faces, np.where(middle, far, guide.nearest), guide.n_vertices)
+    band = tracers.corridor(mesh, cut, start, end)
+    assert not np.isin(far, cut.nearest[band]).any()  # the far display vertex is outside the corridor
+    first, last = np.searchsorted(band, [start, end])
+    inside = dijkstra(mesh.edge_graph[band][:, band], directed=True, indices=int(first))
+    assert not np.isfinite(inside[last])  # the corridor does not join the ends
+    path = tracers.trace_geodesic_guided(mesh, start, end, GEODESIC_DEFAULTS, cut)
+    assert edge_length(mesh, path) == pytest.approx(to_start[end], rel=1e-12)

@@ -118,3 +118,23 @@ def test_bad_requests_answer_the_error_schema(server):
     error_body(server.client.post(points, json={"vertices": [1], "extra": 2}), 422, "invalid")
     error_body(server.client.post("/shapes/nope/points", json={"vertices": [1]}), 404, "not_found", "nope")
     error_body(server.client.get("/shapes/nope/mesh"), 404, "not_found", "nope")
+
+
+def test_the_basis_job_makes_the_display_copy_that_every_api_process_then_reads(processes, tmp_path, shared_data):
+    data, env = tmp_path / "data", {"CURVEFM_DISPLAY_VERTICES": str(THRESHOLD)}
+    first = processes.api(data, env=env)
+    shape = first.upload(shared_data / "faust" / "tr_reg_000.off")
+    stored = data / "displays" / shape / f"v{THRESHOLD}.npz"
+    assert not stored.exists()  # not made by the upload
+    job = first.client.post(f"/shapes/{shape}/bases", json={"k": 10}).raise_for_status().json()
+    assert first.wait_job(job["id"])["state"] == "finished"
+    assert stored.is_file()  # made by the job, before any page asked for the shape
+    made = stored.stat().st_mtime_ns
+    with np.load(stored) as arrays:
+        ids = arrays["vertex_ids"]
+    second = processes.api(data, env=env)  # another API process on the same data
+    for api in (second, first):
+        header, shown = mesh(api, shape)
+        assert header["display_copy"] is True
+        np.testing.assert_array_equal(shown["vertex_ids"], ids)
+    assert stored.stat().st_mtime_ns == made  # read, never made again

@@ -14,6 +14,7 @@ from support.shapes import basis_of, ellipsoid
 
 from curvefm import registry
 from curvefm.errors import Conflict, NotFound
+from curvefm.geometry import check_edge_path
 from curvefm.records.sessions import sessions_of
 from curvefm.session import (
     CurveRecord,
@@ -293,3 +294,18 @@ def test_bases_stored_before_the_method_parameter_are_found_and_explicit_methods
     store.put_basis(mesh_hash, basis, "laplace-beltrami", {"method": "exact"})
     assert store.has_basis(mesh_hash, K, params={"method": "exact"})
     assert not store.has_basis(mesh_hash, K, params={"method": "multires"})
+
+
+def test_an_edit_on_shapes_with_stored_display_copies_traces_near_them_a_path_of_the_whole_mesh(store, shapes):
+    records = sessions_of(store)
+    editor = SessionEditor(records, LiveSessions(store, records, display_vertices=400, guided_trace_vertices=0))
+    for mesh, _ in shapes:
+        store.ensure_display(mesh, 400)
+    session = new_session(editor, store)
+    added, _ = editor.add_curve(session.id, curve(1))
+    with editor.live.using(session.id) as live:
+        assert editor.live.guide(session.source) is not None and editor.live.guide(session.target) is not None
+        for mesh, path in ((live.pair.mesh_M, added.path_source), (live.pair.mesh_N, added.path_target)):
+            internal = mesh.internal_ids(path)
+            assert list(internal[[0, -1]]) == list(mesh.internal_ids(ENDPOINTS[1]))
+            check_edge_path(mesh.edge_graph, internal)

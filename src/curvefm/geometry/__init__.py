@@ -6,7 +6,7 @@ of big meshes and texture coordinates.
 
 from curvefm.geometry.curve_side import curve_side
 from curvefm.geometry.decimation import closest_point_weights, decimate, fast_decimate
-from curvefm.geometry.display import DisplayMesh, display_mesh
+from curvefm.geometry.display import DisplayMesh, display_graph, display_mesh
 from curvefm.geometry.geodesics import (
     checked_ids,
     geodesic_diameter,
@@ -46,6 +46,7 @@ __all__ = [
     "cotangent_laplacian",
     "decimate",
     "fast_decimate",
+    "display_graph",
     "display_mesh",
     "cylindrical_uv",
     "edge_weight_graph",

@@ -24,10 +24,11 @@ from functools import cached_property
 from typing import cast
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 from curvefm.geometry.decimation import decimate
-from curvefm.geometry.mesh import Mesh
+from curvefm.geometry.mesh import Mesh, edge_keys, edge_weight_graph
 
 
 @dataclass(frozen=True, eq=False)
@@ -58,6 +59,36 @@ class DisplayMesh:
         mask: np.ndarray = chosen[self.nearest]
         mask[vertex_ids] = True
         return mask
+
+    @cached_property
+    def cells(self) -> tuple[np.ndarray, np.ndarray]:
+        """The mesh's vertices grouped by their nearest display vertex: ``order[starts[r]:starts[r + 1]]`` are
+        those of row ``r``, ascending."""
+        order = np.argsort(self.nearest, kind="stable")
+        starts = np.searchsorted(self.nearest[order], np.arange(len(self.vertex_ids) + 1))
+        return order, starts
+
+    def cover(self, rows: np.ndarray) -> np.ndarray:
+        """The mesh's vertices whose nearest display vertex is one of ``rows`` (distinct), ascending: reads only
+        their cells, so it costs the size of the answer, not the mesh's."""
+        order, starts = self.cells
+        sizes = starts[rows + 1] - starts[rows]
+        first = np.repeat(starts[rows] - np.cumsum(sizes) + sizes, sizes)
+        return np.sort(order[first + np.arange(int(sizes.sum()))])
+
+
+def display_graph(mesh: Mesh, display: DisplayMesh) -> sp.csr_matrix:
+    """The display copy's edges weighted by their length (rows: display rows), cached on the mesh."""
+
+    def build() -> sp.csr_matrix:
+        count = len(display.vertex_ids)
+        edges = np.column_stack(np.divmod(np.unique(edge_keys(display.faces, count)), count))
+        points = mesh.vertices[display.vertex_ids]
+        lengths = np.linalg.norm(points[edges[:, 0]] - points[edges[:, 1]], axis=1)
+        return edge_weight_graph(len(display.vertex_ids), edges, lengths)
+
+    graph: sp.csr_matrix = mesh.derived.get(("display graph", display.key), build)
+    return graph
 
 
 def display_mesh(mesh: Mesh, vertex_count: int) -> DisplayMesh:

@@ -54,8 +54,8 @@ import scipy.sparse as sp
 from pydantic import BaseModel, ConfigDict, Field
 from scipy.sparse.csgraph import dijkstra
 
-from curvefm.errors import InvalidInput
-from curvefm.geometry import Mesh, edge_weight_graph, shortest_path
+from curvefm.errors import Conflict, InvalidInput
+from curvefm.geometry import DisplayMesh, Mesh, display_graph, edge_weight_graph, shortest_path
 from curvefm.registry import TracerPlugin
 
 # ----------------------------------------------------------------------------------------------------------
@@ -104,18 +104,27 @@ def _trace(mesh: Mesh, graph: sp.csr_matrix, start: int, end: int) -> np.ndarray
     longest = mesh.derived.get(("longest edge",), lambda: float(mesh.edge_lengths.max()))
     reach = FIRST_REACH * float(np.linalg.norm(mesh.vertices[start] - mesh.vertices[end])) + longest
     for _ in range(BOUNDED_TRIES):
-        # our graphs are symmetric, so directed=True is the same search without scipy symmetrising per call
-        dist, pred = dijkstra(graph, directed=True, indices=[start, end], return_predecessors=True, limit=reach)
-        total = dist[0] + dist[1]
-        meet = int(np.argmin(total))
-        if total[meet] <= 2.0 * reach - longest:
-            return np.r_[_walk(pred[0], start, meet)[::-1], _walk(pred[1], end, meet)[1:]]
+        mu, path = _meeting(graph, start, end, reach)
+        if mu <= 2.0 * reach - longest:
+            return path
         # where they met, mu bounds the shortest distance, so the next reach is enough
-        reach = 0.5 * (total[meet] + longest) if np.isfinite(total[meet]) else REACH_GROWTH * reach
+        reach = 0.5 * (mu + longest) if np.isfinite(mu) else REACH_GROWTH * reach
     dist, pred = dijkstra(graph, directed=True, indices=start, return_predecessors=True)  # type: ignore[call-overload]  # scipy-stubs: indices as an array only; scipy takes one int (1-D result)
     if not np.isfinite(dist[end]):
         return shortest_path(graph, start, end)  # raises the shared "different components" error
     return _walk(pred, start, end)[::-1]
+
+
+def _meeting(graph: sp.csr_matrix, start: int, end: int, reach: float) -> tuple[float, np.ndarray]:
+    """The searches from both ends cut off at ``reach``: the least ``d_start(v) + d_end(v)`` over the vertices
+    both settled and the path through that vertex (``inf`` and no path where they did not meet)."""
+    # our graphs are symmetric, so directed=True is the same search without scipy symmetrising per call
+    dist, pred = dijkstra(graph, directed=True, indices=[start, end], return_predecessors=True, limit=reach)
+    total = dist[0] + dist[1]
+    meet = int(np.argmin(total))
+    if not np.isfinite(total[meet]):
+        return np.inf, np.empty(0, dtype=np.int64)
+    return float(total[meet]), np.r_[_walk(pred[0], start, meet)[::-1], _walk(pred[1], end, meet)[1:]]
 
 
 def _walk(pred: np.ndarray, root: int, vertex: int) -> np.ndarray:
@@ -142,11 +151,62 @@ def trace_geodesic(mesh: Mesh, start: int, end: int, params: GeodesicParams) -> 
     return _trace(mesh, mesh.edge_graph, start, end)
 
 
+#: half-width of the corridor around the display copy's path, in rings of display vertices (docs/performance.md)
+CORRIDOR_RINGS = 2
+
+
+def trace_geodesic_guided(mesh: Mesh, start: int, end: int, params: GeodesicParams, guide: DisplayMesh) -> np.ndarray:
+    """:func:`trace_geodesic` on a big mesh, searched in a corridor: a short path between the display vertices
+    nearest to ``start`` and ``end`` on the display copy ``guide`` (thousands of vertices, not millions), widened
+    by ``CORRIDOR_RINGS`` rings of display vertices, then the mesh's shortest edge path from ``start`` to ``end``
+    among the vertices nearest to that band (Dijkstra on that part of the mesh's edge graph). The answer is a
+    path of the mesh's own edges between the given ends, as :func:`trace_geodesic`'s, and as short where the
+    shortest path lies in the corridor; where the corridor does not join the ends the whole mesh is searched."""
+    start, end = _check_endpoints(mesh, start, end)
+    ids = corridor(mesh, guide, start, end)
+    if ids is not None:
+        first, last = np.searchsorted(ids, [start, end]).tolist()
+        # one search over the corridor: a tube that two balls around its ends would mostly cover anyway
+        dist, pred = dijkstra(mesh.edge_graph[ids][:, ids], directed=True, indices=first, return_predecessors=True)
+        if np.isfinite(dist[last]):
+            return ids[_walk(pred, first, last)[::-1]]
+    return _trace(mesh, mesh.edge_graph, start, end)  # the corridor (or the display copy) does not join the ends
+
+
+def corridor(mesh: Mesh, guide: DisplayMesh, start: int, end: int) -> np.ndarray | None:
+    """The vertices of ``mesh`` (ascending) nearest to the display vertices within ``CORRIDOR_RINGS`` rings of a
+    short path on the display copy ``guide`` between the display vertices nearest to ``start`` and ``end``
+    (``None`` where the display copy does not join them)."""
+    coarse = display_graph(mesh, guide)
+    try:
+        rows = _guide_path(coarse, mesh.vertices[guide.vertex_ids], *guide.nearest[[start, end]].tolist())
+    except Conflict:
+        return None
+    band = dijkstra(coarse, directed=True, indices=rows, min_only=True, unweighted=True, limit=CORRIDOR_RINGS)
+    return guide.cover(np.flatnonzero(np.isfinite(band)))
+
+
+def _guide_path(graph: sp.csr_matrix, vertices: np.ndarray, start: int, end: int) -> np.ndarray:
+    """A short path on a display copy: the searches from both ends grown until they meet, the best meeting vertex
+    taken without :func:`_trace`'s proof that no shorter path exists (a corridor needs no more, and the proof's
+    bound, from the copy's longest edge, a dozen times its mean, cost a second search)."""
+    if start == end:
+        return np.array([start], dtype=np.int64)
+    reach = FIRST_REACH * float(np.linalg.norm(vertices[start] - vertices[end])) + float(graph.data.mean())
+    for _ in range(BOUNDED_TRIES):
+        mu, path = _meeting(graph, start, end, reach)
+        if np.isfinite(mu):
+            return path
+        reach *= REACH_GROWTH
+    return shortest_path(graph, start, end)
+
+
 GEODESIC = TracerPlugin(
     name="geodesic",
     description="Shortest path along mesh edges (Dijkstra, Euclidean edge lengths)",
     Params=GeodesicParams,
     run=trace_geodesic,
+    run_guided=trace_geodesic_guided,
 )
 
 

@@ -110,6 +110,7 @@ def start_services(settings: Settings) -> Services:
         size=settings.live_sessions,
         display_vertices=settings.display_vertices,
         prior_max_vertices=settings.prior_max_vertices,
+        guided_trace_vertices=settings.guided_trace_vertices,
     )
     # require_plugin's errors list the installed plugins
     sessions = SessionEditor(records, live, find_plugin=require_plugin, limits=settings.session_limits)
@@ -240,6 +241,7 @@ def submit_basis(
         "k": k,
         "plugin": plugin,
         "params": params,
+        "display_vertices": services.settings.display_vertices,
     }
     dedupe_key = f"basis:{mesh_id}:{plugin}:{k}:{params_key(params)}"
     return services.queue.submit("basis", kwargs, dedupe_key=dedupe_key, owner=owner, admit=admit)

@@ -12,7 +12,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from curvefm import registry
 from curvefm.errors import Conflict, InvalidInput, NotFound
-from curvefm.geometry import Mesh, check_edge_path
+from curvefm.geometry import DisplayMesh, Mesh, check_edge_path
 
 MAX_VERTEX_ID = 2**31 - 1
 """No mesh has more vertices (paths are stored as int32). Also a bound that survives the OpenAPI schema, whose
@@ -112,11 +112,13 @@ def trace_curve(
     path: Sequence[int] | None = None,
     tracer: str = "geodesic",
     params: dict[str, Any] | None = None,
+    guide: DisplayMesh | None = None,
 ) -> np.ndarray:
     """Return a vertex path (internal ids) from user input in **file** ids.
 
     Give either ``waypoints`` (two endpoints, or more points the curve must pass in order; consecutive
-    points are joined by the tracer) or an explicit ``path`` (checked to be edge-connected).
+    points are joined by the tracer) or an explicit ``path`` (checked to be edge-connected). ``guide``: the
+    mesh's display copy, for a tracer that can search near it (``run_guided``) instead of on the whole mesh.
     """
     if (waypoints is None) == (path is None):
         raise InvalidInput("give a curve either as waypoints (endpoints) or as an explicit vertex path")
@@ -129,7 +131,13 @@ def trace_curve(
     if len(points) < 2:
         raise InvalidInput(f"a curve needs at least two waypoints (start and end), got {len(points)}")
     plugin, parsed = registry.load("tracer", tracer, params)
-    pieces = [plugin.run(mesh, int(a), int(b), parsed) for a, b in zip(points[:-1], points[1:], strict=True)]
+
+    def piece(a: int, b: int) -> np.ndarray:
+        if guide is None or plugin.run_guided is None:
+            return plugin.run(mesh, a, b, parsed)
+        return plugin.run_guided(mesh, a, b, parsed, guide)
+
+    pieces = [piece(int(a), int(b)) for a, b in zip(points[:-1], points[1:], strict=True)]
     traced = np.concatenate([pieces[0]] + [p[1:] for p in pieces[1:]])
     if len(traced) < 2:
         raise Conflict("the curve's waypoints are all the same vertex of the mesh; pick two different points")
@@ -167,12 +175,22 @@ def _positions(path: np.ndarray, waypoints: np.ndarray) -> list[int] | None:
     return positions
 
 
-def trace_pair(mesh_M: Mesh, mesh_N: Mesh, spec: CurveSpec, default_tracer: str) -> tuple[np.ndarray, np.ndarray]:
+def trace_pair(
+    mesh_M: Mesh,
+    mesh_N: Mesh,
+    spec: CurveSpec,
+    default_tracer: str,
+    guides: tuple[DisplayMesh | None, DisplayMesh | None] = (None, None),
+) -> tuple[np.ndarray, np.ndarray]:
+    """Both paths of a curve pair (internal ids); ``guides``: display copies to trace near (:func:`trace_curve`)."""
     tracer = spec.tracer or default_tracer
     paths = []
-    for side, mesh, ids in (("source", mesh_M, spec.source), ("target", mesh_N, spec.target)):
+    for side, mesh, ids, guide in (
+        ("source", mesh_M, spec.source, guides[0]),
+        ("target", mesh_N, spec.target, guides[1]),
+    ):
         if spec.is_path(side):
             paths.append(trace_curve(mesh, path=ids))
         else:
-            paths.append(trace_curve(mesh, waypoints=ids, tracer=tracer, params=spec.tracer_params))
+            paths.append(trace_curve(mesh, waypoints=ids, tracer=tracer, params=spec.tracer_params, guide=guide))
     return paths[0], paths[1]

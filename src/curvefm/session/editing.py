@@ -433,7 +433,8 @@ class SessionEditor:
             else:
                 self.limits.check("max_waypoints", len(ids), f"{len(ids)} waypoints on the {side}")
         mesh_M, mesh_N = self.live.mesh(record.source, "source"), self.live.mesh(record.target, "target")
-        path_M, path_N = trace_pair(mesh_M, mesh_N, spec, record.tracer)
+        guides = self.live.guide(record.source), self.live.guide(record.target)
+        path_M, path_N = trace_pair(mesh_M, mesh_N, spec, record.tracer, guides)
         for side, path in (("source", path_M), ("target", path_N)):
             self.limits.check("max_path_vertices", len(path), f"{len(path)} vertices in the traced {side} path")
         return CurveRecord(

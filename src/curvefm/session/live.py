@@ -33,7 +33,7 @@ import numpy as np
 from curvefm.cache import LRU
 from curvefm.errors import CurvefmError, NotFound, Unavailable, shown
 from curvefm.fmap import CombinedMapSolver, CurveMapSolver, FunctionTransfer, RoundTripQuality
-from curvefm.geometry import DisplayMesh, Mesh, display_mesh
+from curvefm.geometry import DisplayMesh, Mesh, display_graph
 from curvefm.session.record import SessionRecord
 from curvefm.session.restore import (
     BasisNeed,
@@ -93,8 +93,9 @@ class LiveSession:
 class LiveSessions:
     """Live sessions (at most ``size``), the meshes and bases they use, and the locks that serialise them.
     Meshes with more than ``display_vertices`` vertices are drawn as a display copy of about that many
-    (:mod:`curvefm.geometry.display`; 0: every mesh is drawn whole). Sessions on meshes of more than
-    ``prior_max_vertices`` vertices solve the combined energy without its landmark prior."""
+    (:mod:`curvefm.geometry.display`; 0: every mesh is drawn whole); on meshes of at least
+    ``guided_trace_vertices`` whose display copy is stored, curves are traced near it (:meth:`guide`). Sessions
+    on meshes of more than ``prior_max_vertices`` vertices solve the combined energy without its landmark prior."""
 
     def __init__(
         self,
@@ -103,9 +104,11 @@ class LiveSessions:
         size: int = 32,
         display_vertices: int = 0,
         prior_max_vertices: int = 150_000,
+        guided_trace_vertices: int = 300_000,
     ):
         self.store, self.records = store, records
         self.display_vertices, self.prior_max_vertices = display_vertices, prior_max_vertices
+        self.guided_trace_vertices = guided_trace_vertices
         self._meshes: LRU[Mesh] = LRU(16)
         self._displays: LRU[DisplayMesh] = LRU(16)  # by mesh id: seconds to make at scan size, so kept apart
         self._bases: LRU[Basis] = LRU(8)
@@ -191,14 +194,18 @@ class LiveSessions:
         mesh = self.mesh(mesh_id, role)
         if not 0 < self.display_vertices < mesh.n_vertices:
             return None
-        return self._displays.get(mesh_id, lambda: self._stored_display(mesh_id, mesh))
+        return self._displays.get(mesh_id, lambda: self.store.ensure_display(mesh, self.display_vertices))
 
-    def _stored_display(self, mesh_id: str, mesh: Mesh) -> DisplayMesh:
-        display = self.store.get_display(mesh_id, self.display_vertices)
-        if display is None or display.n_vertices != mesh.n_vertices:
-            display = display_mesh(mesh, self.display_vertices)
-            self.store.put_display(mesh_id, self.display_vertices, display)
-        return display
+    def guide(self, mesh_id: str) -> DisplayMesh | None:
+        """The display copy to trace near on a mesh of at least ``guided_trace_vertices``, when one is made
+        already (its basis job makes it; an edit never waits for one): else ``None``, traced on the whole mesh."""
+        mesh = self.mesh(mesh_id)
+        if mesh.n_vertices < self.guided_trace_vertices or not 0 < self.display_vertices < mesh.n_vertices:
+            return None
+        made = self._displays.peek(mesh_id)
+        if made is None and (made := self.store.find_display(mesh, self.display_vertices)) is not None:
+            self._displays.put(mesh_id, made)
+        return made
 
     def basis(self, need: BasisNeed) -> Basis:
         key = (need.mesh_id, need.plugin, params_key(need.params), need.k)
@@ -228,8 +235,12 @@ class LiveSessions:
         need_M, need_N = basis_needs(record)
         meshes = self.mesh(record.source, "source"), self.mesh(record.target, "target")
         pair = ShapePair(*meshes, self.basis(need_M), self.basis(need_N))
-        for mesh in pair.meshes:
+        for mesh_id, mesh in ((record.source, pair.mesh_M), (record.target, pair.mesh_N)):
             mesh.edge_graph  # noqa: B018  (cached property: built here so the first trace answers at once)
+            guide = self.guide(mesh_id)
+            if guide is not None:  # and what a trace near the display copy reads
+                guide.cells  # noqa: B018
+                display_graph(mesh, guide)
         return LiveSession(record, pair, self._solver(record, pair), LRU(8), LRU(2))
 
     def fit_energy(self, live: LiveSession) -> None:

@@ -26,14 +26,25 @@ from curvefm.workers.context import running_job
 
 
 def compute_basis(
-    data_dir: str, mesh_id: str, k: int, plugin: str = "laplace-beltrami", params: dict | None = None
+    data_dir: str,
+    mesh_id: str,
+    k: int,
+    plugin: str = "laplace-beltrami",
+    params: dict | None = None,
+    display_vertices: int = 0,
 ) -> dict:
-    """Compute (or find) the basis of a stored mesh and store it."""
+    """Compute (or find) the basis of a stored mesh and store it; for a mesh of more than ``display_vertices``
+    (0: none) also its display copy of that many, unless stored, so that no API process makes it when a page
+    first asks (46 s at 1.76M vertices)."""
     with running_job() as job:
         store = Store(data_dir)
         mesh = store.get_mesh(mesh_id)
         basis_plugin, parsed = registry.load("basis", plugin, params)
-        store.ensure_basis(mesh, k, plugin, parsed, job.progress)
+        drawn_coarse = 0 < display_vertices < mesh.n_vertices
+        store.ensure_basis(mesh, k, plugin, parsed, scaled(job.progress, 0.0, 0.9) if drawn_coarse else job.progress)
+        if drawn_coarse:
+            job.progress(0.9, "display copy")
+            store.ensure_display(mesh, display_vertices)
         canonical = basis_plugin.storage_params(parsed)
         return {
             "shape": mesh_id,
