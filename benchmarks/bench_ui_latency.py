@@ -142,18 +142,35 @@ def percentile(values: list[float], q: float) -> float:
     return round(float(np.percentile(values, q)), 1)
 
 
+def cpu_seconds(pid: int) -> float:
+    """User and system CPU time of process ``pid`` so far (Linux)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def measure_latency(
-    browser, url: str, token: str, session_id: str, n_vertices: int, curves: int, pair: str, pause_s: float = 0.0
+    browser,
+    url: str,
+    token: str,
+    session_id: str,
+    n_vertices: int,
+    curves: int,
+    pair: str,
+    pause_s: float = 0.0,
+    server_pid: int | None = None,
 ) -> dict:
     page = browser.new_page(viewport=VIEWPORT)
     open_session(page, url, session_id, token, timeout_ms=120_000)
     pairs = endpoint_pairs(pickable_vertices(page), curves)
     samples = []
+    server_cpu = cpu_seconds(server_pid) if server_pid else 0.0
     for ends in pairs:
         samples.append(click_curve(page, list(ends)))
         time.sleep(pause_s)
+    server_cpu = cpu_seconds(server_pid) - server_cpu if server_pid else None
     page.close()
     total = [s["totalMs"] for s in samples]
+    parts = (("edit_request", "editMs"), ("transfer", "transferMs"), ("draw", "drawMs"))
     return {
         "pair": pair,
         "vertices": n_vertices,
@@ -161,13 +178,14 @@ def measure_latency(
         "curves": curves,
         "pause_s": pause_s,
         "click_to_texture_ms": {"p50": percentile(total, 50), "p95": percentile(total, 95), "max": max(total)},
-        "parts_median_ms": {
-            part: percentile([s[key] for s in samples], 50)
-            for part, key in (("edit_request", "editMs"), ("transfer", "transferMs"), ("draw", "drawMs"))
-        },
+        "parts_median_ms": {part: percentile([s[key] for s in samples], 50) for part, key in parts},
+        "parts_p95_ms": {part: percentile([s[key] for s in samples], 95) for part, key in parts},
         "server_solve_median_ms": percentile([s["solveMs"] for s in samples], 50),
         "requests_per_click": max(s.get("requests", 2) for s in samples),
+        # everything the server did while the curves were entered (edits, reads after them, priors), per curve
+        "server_cpu_ms_per_curve": None if server_cpu is None else round(1000 * server_cpu / curves, 1),
         "samples_ms": total,
+        "samples_parts_ms": [[s[key] for _, key in parts] for s in samples],
     }
 
 
@@ -267,13 +285,17 @@ def pair_files(scan_level: int, tosca_pair: tuple[str, str]) -> tuple[list[tuple
     return tosca_files(tosca_pair), "/".join(tosca_pair)
 
 
-def measure_in_browser(browser, client: httpx.Client, url: str, token: str, args: argparse.Namespace) -> dict:
+def measure_in_browser(
+    browser, client: httpx.Client, url: str, token: str, args: argparse.Namespace, server_pid: int
+) -> dict:
     """The latency (unless ``--curves 0``) and the responsiveness (unless ``--no-large``) sections."""
     result = {}
     if args.curves:
         files, pair = pair_files(args.scan_level, LATENCY_PAIR)
         session_id, n = prepare_session(client, files)
-        result["latency"] = measure_latency(browser, url, token, session_id, n, args.curves, pair, args.pause)
+        result["latency"] = measure_latency(
+            browser, url, token, session_id, n, args.curves, pair, args.pause, server_pid
+        )
     if not args.no_large:
         files, pair = pair_files(args.scan_level, LARGE_PAIR)
         session_id, n = prepare_session(client, files)
@@ -332,7 +354,7 @@ def main() -> None:
         if args.curves or not args.no_large:
             with sync_playwright() as playwright:
                 browser = launch(playwright)
-                result.update(measure_in_browser(browser, client, url, token, args))
+                result.update(measure_in_browser(browser, client, url, token, args, server.pid))
                 browser.close()
         reads = [measure_scan_reads(client, level, args.transfer_reads) for level in args.transfer_levels]
         if reads:

@@ -42,7 +42,7 @@ from curvefm.fmap.reference_solvers import conjugate_gradient_solve, quasi_newto
 from curvefm.fmap.restriction import DEFAULT_SAMPLES, restrict, restriction_operator
 from curvefm.fmap.round_trip import RoundTripQuality
 from curvefm.fmap.solver import DEFAULT_ALPHA, CurveMapSolver
-from curvefm.fmap.transfer import FunctionTransfer, transfer
+from curvefm.fmap.transfer import FunctionTransfer, transfer, transposed_basis
 from curvefm.spectral import DEFAULT_K
 
 __all__ = [
@@ -85,4 +85,5 @@ __all__ = [
     "restriction_operator",
     "solve_both",
     "transfer",
+    "transposed_basis",
 ]

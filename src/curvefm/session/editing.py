@@ -17,6 +17,7 @@ import random
 import secrets
 import time
 from collections.abc import Callable
+from concurrent.futures import wait
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal, ParamSpec, TypeVar
 
@@ -25,7 +26,7 @@ from pydantic import BaseModel, Field
 
 from curvefm import registry
 from curvefm.errors import Conflict, NotFound, RevisionMismatch, StaleRevision, shown
-from curvefm.fmap import EffectiveSolve, FunctionTransfer, RoundTripQuality
+from curvefm.fmap import EffectiveSolve, FunctionTransfer, RoundTripQuality, transposed_basis
 from curvefm.geometry import DisplayMesh, Mesh, texture_coordinates
 from curvefm.limits import SessionLimits
 from curvefm.pointwise import suggest_curve
@@ -404,12 +405,12 @@ class SessionEditor:
         return pair.mesh_M.file_ids[list(found.source)].tolist(), pair.mesh_N.file_ids[list(found.target)].tolist()
 
     def _display_rows(self, live: LiveSession) -> np.ndarray | None:
-        """The target's basis at its display vertices (float32, made once per session: reading these rows alone
-        is what makes a display transfer cheap), or ``None`` when the target is drawn whole."""
+        """The target's basis at its display vertices (:func:`transposed_basis`, made once per session: reading
+        these rows alone is what makes a display transfer cheap), or ``None`` when the target is drawn whole."""
         shown = self.live.display(live.record.target, "target")
         if shown is None:
             return None
-        return live.display_rows.get(shown.key, lambda: live.solver.basis_N.evecs[shown.vertex_ids].astype(np.float32))
+        return live.display_rows.get(shown.key, lambda: transposed_basis(live.solver.basis_N.evecs[shown.vertex_ids]))
 
     def _check_shapes(self, record: SessionRecord) -> None:
         """Both shapes exist, can have ``k`` basis functions, and have them already."""
@@ -452,21 +453,24 @@ class SessionEditor:
 
     def _commit(self, live: LiveSession, event: dict[str, Any], **changes: Any) -> None:
         """Write the edited record, then make it the live one; when its texture was read since the last edit (the
-        web UI reads it after each), have the new map solved in the background, so the next read finds it solved
-        or on its way (a script that only edits leaves the solves to its reads, if any). If writing fails the
-        solver already holds the edit, so the live session is dropped and rebuilt from the database on next use: so
-        when another process wrote the session since this edit read it (the write's revision check fails, a 409
-        that says to try again; the retry starts from the other process's revision)."""
+        web UI reads it after each, or has it carried in the edit's answer), have the new map solved on another
+        thread while the record is written (the durable write mostly waits for the disk), so the answer, or the
+        next read, finds it solved (a script that only edits leaves the solves to its reads, if any). If writing
+        fails the solver already holds the edit, so the live session is dropped and rebuilt from the database on
+        next use: so when another process wrote the session since this edit read it (the write's revision check
+        fails, a 409 that says to try again; the retry starts from the other process's revision)."""
+        solving = self.live.solve_beside(live) if live.watched else None
+        live.watched = False
         try:
             live.record = self.records.write(live.record.model_copy(update=changes), base=live.record)
         except BaseException:
             self.live.drop(live.record.id)
             raise
+        finally:
+            if solving is not None:
+                wait([solving])  # the solver is the edit's again
         self.live.notify(live.record.id, {**event, "revision": live.record.revision})
         self.live.fit_energy(live)
-        if live.watched:
-            live.watched = False
-            self.live.solve_soon(live.record.id)
 
 
 def source_function(

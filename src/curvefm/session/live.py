@@ -22,7 +22,7 @@ import os
 import threading
 import zlib
 from collections.abc import Callable, Iterator
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import cached_property, partial
@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from curvefm.cache import LRU
-from curvefm.errors import CurvefmError, NotFound, Unavailable, shown
+from curvefm.errors import NotFound, Unavailable, shown
 from curvefm.fmap import CombinedMapSolver, CurveMapSolver, FunctionTransfer, RoundTripQuality
 from curvefm.geometry import DisplayMesh, Mesh, display_graph
 from curvefm.session.record import SessionRecord
@@ -80,7 +80,7 @@ class LiveSession:
     pair: ShapePair
     solver: CurveMapSolver
     transfers: LRU[FunctionTransfer]  # by (function, vertices, spread): the function on M projected on M's basis
-    display_rows: LRU[np.ndarray]  # by display copy key: float32 rows of N's basis at the target's display vertices
+    display_rows: LRU[np.ndarray]  # by display copy key: N's basis at the target's display vertices (transposed_basis)
     # someone reads its texture between edits (the web UI, after each): its next edit's map is solved at once
     watched: bool = False
 
@@ -152,23 +152,11 @@ class LiveSessions:
         with self.locked(session_id):
             yield self._current(session_id)
 
-    def solve_soon(self, session_id: str) -> None:
-        """Solve the session's map ``C_MN`` (the one the texture is carried by) on a background thread, as soon as
-        the session's lock is free: the edit's answer and the page's next request overlap with the solve
-        (7-9 ms at k = 120) instead of waiting for it."""
-        self._executor.submit(self._solve_map, session_id)
-
-    def _solve_map(self, session_id: str) -> None:
-        """Solve ``C_MN`` of the session as held in memory, if it still is (never load or rebuild one for this)."""
-        try:
-            with self.locked(session_id):
-                live = self._sessions.peek(session_id)
-                if live is not None:
-                    live.solver.C_MN  # noqa: B018  (a property: solves when the last edit left the map stale)
-        except CurvefmError:
-            pass  # busy meanwhile: the next read solves it
-        except Exception as error:  # a thread nobody waits for: say so rather than lose it
-            log.warning("background solve of a session's map failed: %s", type(error).__name__)
+    def solve_beside(self, live: LiveSession) -> Future[None]:
+        """Solve the session's map ``C_MN`` (the one the texture is carried by; 7-9 ms at k = 120) on another
+        thread, beside the caller's work: the caller holds the session's lock and leaves its solver alone until
+        the future is done."""
+        return self._executor.submit(_solve_map, live.solver)
 
     def prepare(self, session_id: str) -> None:
         """Load the session's bases and build its solver now, so that its first edit answers at once."""
@@ -281,6 +269,13 @@ pages showing it update (:mod:`curvefm.service.session_events`)."""
 
 def _nobody(session_id: str, event: dict[str, Any]) -> None:
     """No one follows the sessions (the command line, the library)."""
+
+
+def _solve_map(solver: CurveMapSolver) -> None:
+    try:
+        solver.C_MN  # noqa: B018  (a property: solves when the last edit left the map stale)
+    except Exception as error:  # the next read solves it again and answers with the error
+        log.warning("solving a session's map beside its write failed: %s", type(error).__name__)
 
 
 def _lower_priority() -> None:

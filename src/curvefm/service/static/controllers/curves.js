@@ -22,7 +22,7 @@ import { commentClick } from "./comments.js";
 import { chooseRegion } from "./display.js";
 import { edits, runEdit } from "./edits.js";
 import { answerTemplateCurve } from "./guide.js";
-import { clickSuggestion, showSuggestion } from "./suggestion.js";
+import { clickSuggestion, refreshDeferredSuggestion, showSuggestion } from "./suggestion.js";
 
 /** A click on a vertex of one shape (internal id): a point of the curve being entered, the region's centre, or (Alt, or
  * the Comment toggle) where a review comment is pinned. */
@@ -144,6 +144,7 @@ export function acceptSuggestion(clickTime) {
 export function cancelPending() {
   clearPending();
   showPending();
+  refreshDeferredSuggestion(); // it waited for the curve being entered
 }
 
 /** Escape cancels the clicks so far (and choosing a region, and moving a suggested end); Ctrl+Z (Cmd+Z) undoes; A
@@ -156,6 +157,7 @@ export function pressKey(event) {
     setMoving(null);
     showPending();
     showSuggestion();
+    refreshDeferredSuggestion();
   } else if (event.key === "a" && !event.ctrlKey && !event.metaKey && !event.altKey) {
     acceptSuggestion(event.timeStamp);
   } else if ((event.ctrlKey || event.metaKey) && event.key === "z" && state.ready) {

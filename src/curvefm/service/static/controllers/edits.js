@@ -22,7 +22,7 @@ import { refreshCollection } from "./collections.js";
 import { resync } from "./connection.js";
 import { carriedFromAnswer, carriedFunction } from "./feedback.js";
 import { refreshQuality } from "./quality.js";
-import { refreshSuggestion } from "./suggestion.js";
+import { deferSuggestion, refreshSuggestion } from "./suggestion.js";
 
 /** The session's edits: call the service, then keep the local record in step with its answer. */
 export const edits = {
@@ -93,6 +93,7 @@ export async function runEdit(clickTime, kind, failure, perform) {
     showCurves();
     showPending();
     if (carried === null) return; // a newer edit's texture is on its way
+    if (carried.priorPending) deferSuggestion(); // in the frame of the texture
     paint("target", state.fn, carried.rows);
     const drawnAt = await viewports.target.drawn();
     recordSample({
@@ -106,7 +107,7 @@ export async function runEdit(clickTime, kind, failure, perform) {
       requests: answered ? 1 : 2, // the edit alone, or the edit and the transfer read
     });
     refreshQuality(); // after the texture: the reverse map it needs is solved while the user looks
-    refreshSuggestion(); // a request of its own, after the texture too
+    if (!carried.priorPending) refreshSuggestion(); // a request of its own, after the texture too
   } catch (error) {
     showPending();
     report(error, failure);

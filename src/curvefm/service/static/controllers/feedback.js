@@ -6,9 +6,13 @@ import { nextTransferTicket, recordSample, state } from "../store.js";
 import { report } from "../views/messages.js";
 import { showStatus } from "../views/page.js";
 import { paint, showSource, sourceValues, viewports } from "../views/viewports.js";
+import { refreshDeferredSuggestion } from "./suggestion.js";
 
 const COLUMNS = { uv: 2, xyz: 3, indicator: 1 };
 const PRIOR_POLL_MS = 600; // the landmark prior takes about a second after an edit
+// a page that follows the session's events hears when the prior lands (priorLanded): its reads are a fallback
+const FOLLOWED_PRIOR_POLL_MS = 3000;
+let awaited = null; // { ticket, timer }: the texture to show again once the landmark prior has landed
 
 /** The chosen function carried to the target (rows per target vertex), through the live map from the service
  * or through the refined pointwise map; null when a newer request started meanwhile (its answer wins). */
@@ -44,18 +48,37 @@ export function carriedFromAnswer(carried) {
 }
 
 /** The service is still computing the landmark prior for the current curves: show the better map when it lands
- * (unless something newer has been asked for meanwhile). Until then the map is the one on screen, so a read that
- * finds the prior still pending paints nothing: repainting 28k vertices took the cores from the next clicks. */
+ * (unless something newer has been asked for meanwhile), and then the suggestion deferred for it. Until then the
+ * map is the one on screen, so a read that finds the prior still pending paints nothing: repainting 28k vertices
+ * took the cores from the next clicks. A page following the session's events reads when told (priorLanded). */
 function showWhenPriorLands(ticket) {
-  setTimeout(async () => {
-    if (ticket !== state.transferTicket) return;
-    try {
-      const carried = await carriedFunction();
-      if (carried !== null && !carried.priorPending) paint("target", state.fn, carried.rows);
-    } catch {
-      // a refresh in the background: a lost connection has its banner, and the next change shows the map
-    }
-  }, PRIOR_POLL_MS);
+  clearTimeout(awaited?.timer);
+  const wait = state.followed === state.session?.id ? FOLLOWED_PRIOR_POLL_MS : PRIOR_POLL_MS;
+  awaited = { ticket, timer: setTimeout(() => showLandedPrior(ticket), wait) };
+}
+
+async function showLandedPrior(ticket) {
+  if (ticket !== state.transferTicket) return;
+  awaited = null;
+  try {
+    const carried = await carriedFunction(); // still pending: it waits again (showWhenPriorLands)
+    if (carried === null || carried.priorPending) return;
+    paint("target", state.fn, carried.rows);
+    refreshDeferredSuggestion();
+  } catch {
+    // a refresh in the background: a lost connection has its banner, and the next change shows the map
+  }
+}
+
+/** The session's events say that the landmark prior of ``revision`` landed: show the map it improved. */
+export function priorLanded(revision) {
+  if (revision !== state.session?.revision || state.editing > 0) return;
+  if (awaited === null) {
+    refreshDeferredSuggestion();
+    return;
+  }
+  clearTimeout(awaited.timer);
+  showLandedPrior(awaited.ticket);
 }
 
 /** Paint the source and the carried function on the target; with the click's time, record how long it took

@@ -7,6 +7,7 @@ import { toast } from "../views/messages.js";
 import { showViewers } from "../views/presence.js";
 import { refreshComments } from "./comments.js";
 import { resync } from "./connection.js";
+import { priorLanded } from "./feedback.js";
 import { refreshQuality } from "./quality.js";
 import { restoreRefinement } from "./refine.js";
 import { leaveDeletedSession } from "./session.js";
@@ -52,8 +53,9 @@ function received(event) {
     case "viewers":
       showPresence(event.viewers);
       break;
-    case "prior": // the map of this revision improved: the texture follows by itself (feedback.js), the quality not
+    case "prior": // the map of this revision improved: the texture, the quality and the suggestion follow
       if (event.revision === state.session.revision && state.editing === 0) refreshQuality();
+      priorLanded(event.revision);
       break;
     case "comments": // the member's review comments changed (here, elsewhere, on another API process)
       refreshComments();

@@ -9,6 +9,7 @@ import { showQualityLegend, showStatus } from "../views/page.js";
 import { repaint, showWeakestRegions } from "../views/viewports.js";
 
 const PRIOR_POLL_MS = 600; // the landmark prior lands about a second after an edit
+const FOLLOWED_PRIOR_POLL_MS = 3000; // a page following the session's events is told when it lands (live.js)
 const OFFLINE_RETRY_MS = 2000; // as the health check: the figures come back with the service
 let nextRead = null; // the timer of the next read while the landmark prior is pending
 
@@ -27,7 +28,8 @@ export async function refreshQuality() {
     setQuality(quality);
     showStatus(); // and the overlay's legend
     if (state.showQuality) showOverlay();
-    if (quality.priorPending) nextRead = setTimeout(refreshQuality, PRIOR_POLL_MS);
+    const wait = state.followed === session.id ? FOLLOWED_PRIOR_POLL_MS : PRIOR_POLL_MS;
+    if (quality.priorPending) nextRead = setTimeout(refreshQuality, wait);
   } catch (error) {
     // the banner says that the service cannot be reached: a toast for each read in the background would only
     // pile up over the shapes

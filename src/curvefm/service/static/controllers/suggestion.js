@@ -22,6 +22,7 @@ import { SIDES, viewports } from "../views/viewports.js";
 const SNAP = 0.04; // a click this close to a suggested end (a fraction of the shape's bounding diagonal) picks it
 const PRIOR_POLL_MS = 600; // as the quality's: the landmark prior lands about a second after an edit
 let nextRead = null; // the timer of the next read while the landmark prior is pending
+let deferred = false; // the maps are about to change: the suggestion is asked for once they did (deferSuggestion)
 
 /** Ask for the suggestion for the session's current maps and show it; an answer overtaken by another revision or
  * session is dropped. Read after the texture is drawn, in a request of its own: no edit waits for it. */
@@ -29,6 +30,7 @@ export async function refreshSuggestion() {
   const session = state.session;
   if (!session || !state.showSuggestion) return;
   clearTimeout(nextRead);
+  deferred = false;
   try {
     const suggestion = await api.suggestion(session.id);
     await placeSuggestion(suggestion);
@@ -39,6 +41,24 @@ export async function refreshSuggestion() {
   } catch (error) {
     if (error.kind !== "network") report(error, "No next curve could be suggested");
   }
+}
+
+/** An edit's maps will still change (its landmark prior lands about a second later): hide the previous maps'
+ * suggestion now and ask for one once the prior landed (refreshDeferredSuggestion), not now. A suggestion costs
+ * the service a tenth of a second or more of CPU; asked for now and again when the prior lands, both fell on the
+ * next curve's clicks, on the cores that trace, solve and draw them. */
+export function deferSuggestion() {
+  deferred = true;
+  clearTimeout(nextRead);
+  if (state.suggestion === null) return;
+  setSuggestion(null);
+  showSuggestion();
+}
+
+/** Ask for a deferred suggestion (the prior landed, or the clicks of a curve were cancelled), unless a curve is
+ * being entered or sent: its edit makes the maps change again. */
+export function refreshDeferredSuggestion() {
+  if (deferred && pendingEmpty() && state.editing === 0) refreshSuggestion();
 }
 
 /** Place the suggestion's ends and paths on shapes drawn as display copies (points.js). */
