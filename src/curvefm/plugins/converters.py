@@ -41,7 +41,9 @@ class NearestNeighborParams(SearchParams):
         le=50,
         description="orthogonal (ICP) steps at the functional map's own size after the nearest neighbours, each "
         "direction: the map fitted to the pointwise map, made orthonormal, matched again; they sharpen the map the "
-        "curves determine without going beyond its frequencies. None where the search is approximate (big meshes)",
+        "curves determine without going beyond its frequencies; a map of the basis's size is converted from its "
+        "leading block, leaving them 30 functions of the basis to fit against. None where the search is approximate "
+        "(big meshes)",
     )
 
 
