@@ -313,8 +313,8 @@ def faust(shared_data, tmp_path_factory):
 def test_the_combined_default_beats_the_curve_energy_and_no17_from_the_same_endpoints(faust):
     # the issue's protocol: 2n farthest points among ground-truth vertices, consecutive pairs joined,
     # nearest-neighbour conversion, mean geodesic error / sqrt(area). The energies are compared under plain nearest
-    # neighbours: the conversion's orthogonal steps apply to maps smaller than the basis only, so they would sharpen
-    # NO17's 50 x 50 map from 10 curves (0.0185) and not the combined 120 x 120 one (0.0214; docs/decisions.md)
+    # neighbours, as maps of different sizes: the conversion's orthogonal steps fit a 50 x 50 map at 50 x 80 and a
+    # 120 x 120 one from its 90 x 90 block at 90 x 120 (docs/decisions.md#orthogonal-steps-in-the-conversion)
     M, N, truth, store = faust
     errors = {}
     plain = {"orthogonal_steps": 0}

@@ -16,6 +16,7 @@ from curvefm.pointwise import (
     orthogonal_steps,
     pointwise_from_both,
     pointwise_from_fmap,
+    room_for_steps,
     uses_approximate,
 )
 from curvefm.progress import Progress, no_progress
@@ -40,7 +41,9 @@ class NearestNeighborParams(SearchParams):
         le=50,
         description="orthogonal (ICP) steps at the functional map's own size after the nearest neighbours, each "
         "direction: the map fitted to the pointwise map, made orthonormal, matched again; they sharpen the map the "
-        "curves determine without going beyond its frequencies. None where the search is approximate (big meshes)",
+        "curves determine without going beyond its frequencies; a map of the basis's size is converted from its "
+        "leading block, leaving them 30 functions of the basis to fit against. None where the search is approximate "
+        "(big meshes)",
     )
 
 
@@ -67,15 +70,18 @@ def _one_direction(
     """The map from ``mesh_from`` to ``mesh_to`` (a vertex of ``mesh_to`` per vertex): ``C_forward`` carries
     functions from ``mesh_to`` to ``mesh_from``, ``C_back`` the other way."""
     embedding = params.embedding
-    if embedding == "auto" and uses_approximate(mesh_to.n_vertices, mesh_from.n_vertices):
+    exact = not uses_approximate(mesh_to.n_vertices, mesh_from.n_vertices)
+    if embedding == "auto" and not exact:
         embedding = "both"
+    if exact and params.orthogonal_steps > 0:
+        C_forward, C_back = room_for_steps(C_forward, C_back, basis_from)
     candidates = []
     if embedding in ("auto", "both"):
         candidates.append(pointwise_from_both(C_forward, C_back, basis_to, basis_from, params.search))
     if embedding in ("auto", "single"):
         candidates.append(pointwise_from_fmap(C_forward, basis_to, basis_from, params.search))
     p2p = min(candidates, key=lambda p2p: edge_stretch(mesh_from, mesh_to, p2p))
-    if uses_approximate(mesh_to.n_vertices, mesh_from.n_vertices):
+    if not exact:
         return p2p
     k_from, k_to = C_forward.shape
     return orthogonal_steps(p2p, basis_to, basis_from, k_to, k_from, params.orthogonal_steps, params.search)

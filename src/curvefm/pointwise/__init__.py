@@ -14,6 +14,7 @@ from curvefm.pointwise.conversion import (
     orthogonal_steps,
     pointwise_from_both,
     pointwise_from_fmap,
+    room_for_steps,
 )
 from curvefm.pointwise.curve_pins import CurvePins, no_pins
 from curvefm.pointwise.geodesic_mds import (
@@ -61,6 +62,7 @@ __all__ = [
     "nearest_neighbors",
     "nearest_orthogonal",
     "no_pins",
+    "room_for_steps",
     "orthogonal_steps",
     "pointwise_from_both",
     "pointwise_from_fmap",

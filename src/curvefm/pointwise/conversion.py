@@ -18,6 +18,8 @@ from curvefm.spectral import Basis
 #: functions on the image side that :func:`orthogonal_steps` adds to the map's size (as the ``icp`` converter's 50 x
 #: 80: square maps drift, see :mod:`curvefm.plugins.icp`)
 ORTHOGONAL_EXTRA = 30
+#: the smallest block :func:`room_for_steps` converts from (the landmark prior's size)
+STEPPED_FROM = 50
 
 
 @dataclass(frozen=True)
@@ -90,6 +92,18 @@ def orthogonal_steps(
         C = nearest_orthogonal(fmap_from_pointwise(p2p_NM, basis_M, basis_N, k_M, k_image))
         p2p_NM = nearest_neighbors(basis_M.evecs[:, :k_M] @ C.T, basis_N.evecs[:, :k_image], search)
     return p2p_NM
+
+
+def room_for_steps(C_forward: np.ndarray, C_back: np.ndarray, basis_from: Basis) -> tuple[np.ndarray, np.ndarray]:
+    """The maps' leading blocks that leave :data:`ORTHOGONAL_EXTRA` functions of ``basis_from`` (the matched shape's)
+    for :func:`orthogonal_steps`, where the maps leave fewer and the blocks keep at least
+    :data:`STEPPED_FROM` functions; else the maps. ``C_forward`` carries functions to ``basis_from``'s shape,
+    ``C_back`` from it. The 120 x 120 maps' frequencies above 90 blurred the pointwise map more than the steps' fit to
+    120 recovers (docs/decisions.md#orthogonal-steps-in-the-conversion)."""
+    k = basis_from.k - ORTHOGONAL_EXTRA
+    if C_forward.shape[0] <= k or k < STEPPED_FROM:
+        return C_forward, C_back
+    return np.ascontiguousarray(C_forward[:k, :k]), np.ascontiguousarray(C_back[:k, :k])
 
 
 def fmap_from_pointwise(p2p_NM: np.ndarray, basis_M: Basis, basis_N: Basis, k_M: int, k_N: int) -> np.ndarray:
