@@ -5,9 +5,13 @@ over the shapes) gives them: 2n farthest-point endpoints among the vertices with
 joined (:func:`curvefm.evaluation.ground_truth_curves`; the first 2n of a farthest-point sequence are the sequence
 for n curves, so each run is a prefix of the next). Each seed starts the farthest-point sampling at another vertex;
 ``source`` chooses the endpoints on the pair's source and scores the source -> target map on the target,
-``target`` does both the other way round (the pair reversed). After each click the map is scored by the mean
-geodesic error / sqrt(area) at the ground-truth rows the curves do not end at (a landmark truth: at the landmarks
-held out of the endpoints), as ``LoadedPair``'s scorer converts it (nearest neighbours in the spectral embedding).
+``target`` does both the other way round (the pair reversed). After each click each functional map below is
+converted as ``curvefm match`` converts it (:func:`curvefm.matching.handed_out`: the ``nearest-neighbor`` converter
+with its orthogonal steps) and the source -> target pointwise map scored as ``bench_suggestions`` scores its maps
+(:func:`benchmarks.common.handed_out_errors`): the mean geodesic error / sqrt(area) at the ground-truth rows the
+curves do not end at (a landmark truth: at the landmarks held out of the endpoints). The runs recorded before
+(``experiments/monotone_rule*.json``) scored plain nearest neighbours of ``C_NM`` on a 1,000-row sample of the truth
+instead (``curvefm reproduce``'s scorer).
 
 The maps after each click, all from one solver per run (one landmark prior per set of endpoints):
 
@@ -35,20 +39,28 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from benchmarks.common import bench_store, machine, shared_data
-from curvefm.evaluation import ground_truth_curves
-from curvefm.evaluation.protocol import held_out_landmarks
+from benchmarks.common import bench_store, handed_out_errors, machine, shared_data
+from curvefm.evaluation import GroundTruth, ground_truth_curves, ground_truth_for
+from curvefm.evaluation.protocol import Curves, held_out_landmarks
 from curvefm.evaluation.reproduce.datasets import Pair
-from curvefm.evaluation.reproduce.scoring import LoadedPair
-from curvefm.fmap import DEFAULT_K, CombinedMapSolver, CurveMapSolver
+from curvefm.fmap import DEFAULT_K, CombinedMapSolver, CurveMapSolver, FunctionalMaps
 from curvefm.fmap.combined import DEFAULT_COMBINED_ALPHA, curves_alone_suffice, curves_distortion
 from curvefm.geometry import load_mesh
+from curvefm.matching import handed_out, pair_with_basis_size
 from curvefm.runtime import limit_blas_threads
+from curvefm.spectral import ShapePair
 from experiments.common import add_pair_arguments, chosen_pairs
 
 MAPS = ("default", "prior_size", "full_size", "curves")
 FIGURE_SIZES = (50, 70, 90, 120)  # the combined map (default weights) handed out at these sizes, with --figures
 NEVER = 10**9  # a full-size switch no run reaches
+
+
+@dataclass
+class LoadedPair:
+    pair: Pair
+    shapes: ShapePair
+    truth: GroundTruth
 
 
 @dataclass
@@ -72,41 +84,34 @@ class Run:
 
 def loaded_pair(pair: Pair, direction: str) -> LoadedPair:
     chosen = pair if direction == "source" else replace(pair, source=pair.target, target=pair.source)
-    return LoadedPair.load(shared_data(), chosen, DEFAULT_K, bench_store())
+    data = shared_data()
+    meshes = load_mesh(data / chosen.source), load_mesh(data / chosen.target)
+    truth = ground_truth_for(data / chosen.source, data / chosen.target, *meshes)
+    return LoadedPair(chosen, pair_with_basis_size(bench_store(), meshes, DEFAULT_K), truth)
 
 
-def scored_rows(run: Run, curves) -> np.ndarray:
-    """Mask over the scorer's rows: not a curve's end, and a held-out landmark if the truth is sparse."""
-    scorer, truth = run.loaded.scorers["source"], run.loaded.truth
-    ends_M = [path[i] for path, _ in curves for i in (0, -1)]
-    ends_N = [path[i] for _, path in curves for i in (0, -1)]
-    keep = ~np.isin(scorer.rows_from, ends_M) & ~np.isin(scorer.partners[scorer.columns], ends_N)
-    if not truth.dense:
-        keep &= np.isin(scorer.rows_from, held_out_landmarks(truth, 0))
-    return keep
-
-
-def error(run: Run, C_NM: np.ndarray, rows: np.ndarray) -> float:
+def error(run: Run, fmaps: FunctionalMaps, curves: Curves) -> float:
+    """The error source -> target of the pointwise map ``curvefm match`` hands out for ``fmaps``."""
     shapes = run.loaded.shapes
-    return round(run.loaded.scorers["source"](C_NM, shapes.basis_M, shapes.basis_N, rows).mean_area, 6)
+    maps = handed_out(shapes, fmaps)
+    return handed_out_errors(shapes, maps, run.loaded.truth, curves, ["source_to_target"])["source_to_target"]
 
 
-def handed_out(solver: CombinedMapSolver, full_size_curves: int | None) -> np.ndarray:
-    """The solver's ``C_NM`` as it would be handed out with this full-size switch (None: the default rule); the
+def solved(solver: CombinedMapSolver, full_size_curves: int | None) -> FunctionalMaps:
+    """The solver's maps as they would be handed out with this full-size switch (None: the default rule); the
     prior is kept."""
     solver.full_size_curves = full_size_curves
-    solver._stale.add("NM")  # the weights and size changed, the curves did not
-    C_NM = solver.C_NM
+    solver._stale.update(("MN", "NM"))  # the weights and size changed, the curves did not
+    fmaps = FunctionalMaps(solver.C_MN, solver.C_NM)
     solver.full_size_curves = None
-    return C_NM
+    return fmaps
 
 
 def click_errors(run: Run, combined: CombinedMapSolver, curve_energy: CurveMapSolver, curves, figures: bool) -> dict:
-    rows = scored_rows(run, curves)
     errors = {
-        "prior_size": error(run, handed_out(combined, NEVER), rows),
-        "full_size": error(run, handed_out(combined, 1), rows),
-        "curves": error(run, curve_energy.C_NM, rows),
+        "prior_size": error(run, solved(combined, NEVER), curves),
+        "full_size": error(run, solved(combined, 1), curves),
+        "curves": error(run, FunctionalMaps(curve_energy.C_MN, curve_energy.C_NM), curves),
     }
     shapes = run.loaded.shapes
     if curves_alone_suffice(shapes.basis_M, shapes.basis_N, curves):
@@ -114,17 +119,20 @@ def click_errors(run: Run, combined: CombinedMapSolver, curve_energy: CurveMapSo
     else:
         errors["default"] = errors["full_size" if combined.full_size else "prior_size"]
     if figures:
-        errors |= size_errors(run, combined, rows) | intrinsic_figures(shapes, curves)
+        errors |= size_errors(run, combined, curves) | intrinsic_figures(shapes, curves)
     return errors
 
 
-def size_errors(run: Run, combined: CombinedMapSolver, rows: np.ndarray) -> dict:
+def size_errors(run: Run, combined: CombinedMapSolver, curves: Curves) -> dict:
     """The full-size map cut to each of FIGURE_SIZES, and the default weights' map handed out whole."""
-    full = handed_out(combined, 1)
-    out = {f"full_size_{s}": error(run, full[:s, :s], rows) for s in FIGURE_SIZES[1:-1]}
+    full = solved(combined, 1)
+    out = {
+        f"full_size_{s}": error(run, FunctionalMaps(full.C_MN[:s, :s], full.C_NM[:s, :s]), curves)
+        for s in FIGURE_SIZES[1:-1]
+    }
     weights = combined.full_size_alpha, combined.full_size_kernel_weight
     combined.full_size_alpha, combined.full_size_kernel_weight = combined.alpha, combined.kernel_weight
-    out["prior_weights_120"] = error(run, handed_out(combined, 1), rows)
+    out["prior_weights_120"] = error(run, solved(combined, 1), curves)
     combined.full_size_alpha, combined.full_size_kernel_weight = weights
     return out
 
@@ -228,6 +236,7 @@ def main() -> None:
                 "k": DEFAULT_K,
                 "pairs": args.pairs,
                 "error": "mean geodesic error / sqrt(area), rows not at a curve's end",
+                "maps": "source -> target, converted as curvefm match hands them out (its orthogonal steps)",
                 "summary": summary(runs),
                 "runs": runs,
             }

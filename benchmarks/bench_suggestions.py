@@ -1,9 +1,10 @@
 """Error against clicks with and without suggested curves, on FAUST 000 -> 011 and cat -> lion (prints JSON).
 
-A simulated person adds curves one at a time, up to ``--curves``, and the maps (``curvefm match``'s default: the
-combined energy, k = 120, nearest-neighbour pointwise maps) are scored after each, both directions (mean geodesic
-error / sqrt(area of the shape each map lands on), on every row of the ground truth except those at a curve's end,
-on either shape: a map is never scored at the points the person gave):
+A simulated person adds curves one at a time, up to ``--curves``, and the pointwise maps ``curvefm match`` hands out
+(its defaults: the combined energy, k = 120, the ``nearest-neighbor`` converter with its orthogonal steps) are scored
+after each, both directions, by :func:`benchmarks.common.handed_out_errors` (as ``bench_monotone`` scores them): mean
+geodesic error / sqrt(area of the shape each map lands on), on every row of the ground truth except those at a
+curve's end, on either shape (a map is never scored at the points the person gave):
 
 * **unassisted**: the core issue's protocol (:func:`curvefm.evaluation.ground_truth_curves`): curve i joins
   farthest points 2i and 2i + 1 of the source and their true partners; 4 clicks a curve (two ends on each shape).
@@ -39,8 +40,8 @@ from collections.abc import Callable
 import numpy as np
 
 from benchmarks.bench_scan import subdivided
-from benchmarks.common import bench_store, machine, shared_data
-from curvefm.evaluation import GroundTruth, ground_truth_curves, ground_truth_for, score
+from benchmarks.common import bench_store, handed_out_errors, machine, shared_data
+from curvefm.evaluation import GroundTruth, ground_truth_curves, ground_truth_for
 from curvefm.fmap import DEFAULT_K, FunctionalMaps, RoundTripQuality
 from curvefm.geometry import Mesh, geodesic_distances, load_mesh, shortest_path
 from curvefm.matching import MatchResult, match, pair_with_basis_size
@@ -60,18 +61,9 @@ DEFAULT_TRACER = "geodesic"  # a new session's
 Paths = list[tuple[np.ndarray, np.ndarray]]
 
 
-def without_curve_ends(truth: GroundTruth, curves: Paths) -> GroundTruth:
-    """The rows of ``truth`` whose source vertex is no source curve's end and whose target vertex no target's."""
-    ends_M = [path[i] for path, _ in curves for i in (0, -1)]
-    ends_N = [path[i] for _, path in curves for i in (0, -1)]
-    rows = ~np.isin(truth.ids_X, ends_M) & ~np.isin(truth.ids_Y, ends_N)
-    return GroundTruth(truth.ids_X[rows], truth.ids_Y[rows], truth.kind, truth.dense)
-
-
 def errors(result: MatchResult, truth: GroundTruth, curves: Paths) -> dict[str, float]:
-    scored_on = without_curve_ends(truth, curves)
-    scored = {direction: round(e["mean_area"], 5) for direction, e in score(result, scored_on).items()}
-    return scored | {"mean": round((scored["source_to_target"] + scored["target_to_source"]) / 2, 5)}
+    """The scores of the pointwise maps ``match`` hands out (the product's default conversion)."""
+    return handed_out_errors(result.pair, result.maps, truth, curves)
 
 
 def unassisted(meshes: tuple[Mesh, Mesh], truth: GroundTruth, count: int, store: Store) -> list[dict]:

@@ -1,4 +1,5 @@
-"""Shared helpers of the benchmarks and the experiments: data location, cached bases, the machine, timing, a server.
+"""Shared helpers of the benchmarks and the experiments: data location, cached bases, scoring maps, the machine,
+timing, a server.
 
 Run both from the repository root as modules (``python -m benchmarks.bench_trace``, ``python -m experiments.alpha``),
 so that ``benchmarks`` and ``experiments`` are packages and this module is ``benchmarks.common``."""
@@ -13,7 +14,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from datetime import date
 from pathlib import Path
 
@@ -21,6 +22,10 @@ import httpx
 
 from curvefm.access import users_of
 from curvefm.errors import Conflict
+from curvefm.evaluation import GroundTruth, score_maps, truth_to_score
+from curvefm.evaluation.protocol import DIRECTIONS, Curves
+from curvefm.pointwise import PointwiseMaps
+from curvefm.spectral import ShapePair
 from curvefm.store import Store
 
 REPO = Path(__file__).resolve().parents[1]
@@ -36,6 +41,21 @@ def shared_data() -> Path:
 def bench_store() -> Store:
     """Bases cached between benchmark runs (``CURVEFM_BENCH_DATA``, default /tmp/curvefm-bench)."""
     return Store(os.environ.get("CURVEFM_BENCH_DATA", "/tmp/curvefm-bench"))
+
+
+def handed_out_errors(
+    pair: ShapePair, maps: PointwiseMaps, truth: GroundTruth, curves: Curves, directions: Sequence[str] = DIRECTIONS
+) -> dict[str, float]:
+    """How bench_suggestions and bench_monotone score a map: the mean geodesic error / sqrt(area) of ``maps`` (what
+    ``curvefm match`` hands out: its result's maps, or :func:`curvefm.matching.handed_out` of the functional maps)
+    in each of ``directions``, at the ground-truth rows :func:`curvefm.evaluation.truth_to_score` keeps (none at a
+    curve's end on either shape; of a landmark truth, only the landmarks held out of the endpoints); with both
+    directions, also their ``mean``."""
+    errors = score_maps(pair, maps, truth_to_score(truth, curves), directions)
+    scored = {direction: round(e["mean_area"], 6) for direction, e in errors.items()}
+    if len(scored) == len(DIRECTIONS):
+        scored["mean"] = round(sum(scored.values()) / len(scored), 6)
+    return scored
 
 
 def machine() -> dict:

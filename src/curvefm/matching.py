@@ -27,6 +27,9 @@ from curvefm.session import CurveSpec, pinned_pieces, trace_pair
 from curvefm.spectral import ShapePair
 from curvefm.store import Store
 
+DEFAULT_CONVERTER = "nearest-neighbor"
+"""The converter of ``curvefm match`` and of the service: the pointwise maps a person gets (with its defaults,
+:func:`handed_out`)."""
 BASES_AT_ONCE_MAX_VERTICES = 1_000_000
 """The pair of 440,834-vertex meshes still computes its bases at once (6.4 GB for the whole match)."""
 
@@ -131,8 +134,7 @@ def convert(
     quality = measure(pair, maps, paths)
     if not converter.refines:
         return MatchResult(pair, fmaps, maps, method, paths, {"converted": quality.as_dict()})
-    unrefined, defaults = registry.load("converter", "nearest-neighbor", None)
-    start = unrefined.run(pair, fmaps, defaults)
+    start = handed_out(pair, fmaps)
     start_quality = measure(pair, start, paths)
     worse = compare(quality, start_quality)
     figures = {"initial": start_quality.as_dict(), "refined": quality.as_dict()}
@@ -164,6 +166,13 @@ def induced_fmaps(pair: ShapePair, maps: PointwiseMaps, size: int) -> Functional
     )
 
 
+def handed_out(pair: ShapePair, fmaps: FunctionalMaps) -> PointwiseMaps:
+    """The pointwise maps ``curvefm match`` hands out for ``fmaps`` unrefined: the :data:`DEFAULT_CONVERTER`'s with
+    its defaults (nearest neighbours, then its orthogonal steps)."""
+    converter, defaults = registry.load("converter", DEFAULT_CONVERTER, None)
+    return converter.run(pair, fmaps, defaults)
+
+
 def match(
     mesh_M: Mesh,
     mesh_N: Mesh,
@@ -171,7 +180,7 @@ def match(
     k: int = DEFAULT_K,
     alpha: float | None = None,
     tracer: str = "geodesic",
-    converter: str = "nearest-neighbor",
+    converter: str = DEFAULT_CONVERTER,
     converter_params: dict[str, Any] | None = None,
     store: Store | None = None,
     samples: int | None = None,

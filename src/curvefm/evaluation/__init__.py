@@ -25,6 +25,7 @@ from curvefm.evaluation.protocol import (
     ground_truth_curves,
     reversed_truth,
     score,
+    score_maps,
     truth_away_from_ends,
     truth_to_score,
 )
@@ -49,6 +50,7 @@ __all__ = [
     "read_vts",
     "reversed_truth",
     "score",
+    "score_maps",
     "shared_data_dir",
     "tosca_class",
     "tosca_landmark_truth",

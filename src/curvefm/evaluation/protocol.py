@@ -26,7 +26,9 @@ from curvefm.evaluation.metrics import evaluate_map
 from curvefm.fmap import DEFAULT_K
 from curvefm.geometry import Mesh, farthest_point_sampling, load_mesh, shortest_path
 from curvefm.matching import MatchResult, match
+from curvefm.pointwise import PointwiseMaps
 from curvefm.progress import Progress, no_progress
+from curvefm.spectral import ShapePair
 from curvefm.store import Store
 
 HELD_OUT_FOLDS = 3
@@ -35,6 +37,8 @@ draws its curves' endpoints from the others."""
 HELD_OUT_STREAM = 7  # seeds the landmarks' shuffle apart from the endpoints' draws
 Curves = Sequence[tuple[np.ndarray, np.ndarray]]
 """Corresponding ``(path_M, path_N)`` vertex paths."""
+DIRECTIONS = ("source_to_target", "target_to_source")
+"""The pointwise maps a match scores."""
 ENDPOINT_SIDES = ("source", "target")
 """Where a protocol chooses the curves' endpoints; their partners on the other shape come from the ground truth."""
 
@@ -229,11 +233,19 @@ def carried_path(mesh_N: Mesh, path_M: np.ndarray, partner: dict[int, int]) -> n
 
 def score(result: MatchResult, truth: GroundTruth) -> dict[str, Any]:
     """Errors of both pointwise maps: source -> target measured on the target, and the reverse."""
-    reverse = (truth.ids_Y, truth.ids_X)
-    return {
-        "source_to_target": evaluate_map(result.maps.p2p_MN, truth, result.pair.mesh_N).as_dict(),
-        "target_to_source": evaluate_map(result.maps.p2p_NM, reverse, result.pair.mesh_M).as_dict(),
+    return score_maps(result.pair, result.maps, truth)
+
+
+def score_maps(
+    pair: ShapePair, maps: PointwiseMaps, truth: GroundTruth, directions: Sequence[str] = DIRECTIONS
+) -> dict[str, Any]:
+    """Errors of ``pair``'s pointwise ``maps`` in each of ``directions``: source -> target measured on the target,
+    target -> source on the source."""
+    scored = {
+        "source_to_target": lambda: evaluate_map(maps.p2p_MN, truth, pair.mesh_N),
+        "target_to_source": lambda: evaluate_map(maps.p2p_NM, (truth.ids_Y, truth.ids_X), pair.mesh_M),
     }
+    return {direction: scored[direction]().as_dict() for direction in directions}
 
 
 def evaluate_pair(
