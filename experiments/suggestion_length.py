@@ -10,7 +10,7 @@ of the end, while the curves' total length on the unit-area source is below the 
 * ``base``: the product's rule, ``sqrt(drift) min(d, d_start)``;
 * ``reach:m``: that score among the vertices at least ``(switch - total) / (m - curves)`` from the start (at most
   0.95 of the farthest), so the total crosses the switch at curve m;
-* ``late:m``: the product's rule for curves 2 and 3, ``reach:m`` from the 4th;
+* ``late:m[:j]``: the product's rule for curves 2 to j - 1, ``reach:m`` from the j-th (default 4);
 * ``power:a``: ``sqrt(drift) min(d, d_start)^a d_start^(1 - a)`` (longer curves for a < 1).
 
     python -m experiments.suggestion_length VARIANT PAIR [--curves 6]
@@ -47,7 +47,8 @@ def end_score(
 ):
     weight, nearest = np.sqrt(np.maximum(drift, 0.0)), np.minimum(from_curves, from_start)
     kind, _, value = variant.partition(":")
-    if total >= SWITCH or kind == "base" or (kind == "late" and curves < 3):
+    value, _, first = value.partition(":")
+    if total >= SWITCH or kind == "base" or (kind == "late" and curves + 1 < int(first or 4)):
         return weight * nearest
     if kind == "power":
         return weight * nearest ** float(value) * from_start ** (1 - float(value))
