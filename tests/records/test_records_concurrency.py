@@ -12,7 +12,7 @@ from support.records import add_curves, repositories, session_record, shape_id
 EDITS = 15
 
 
-def test_threads_and_processes_keep_every_acknowledged_edit(db, db_url):
+def test_threads_and_processes_keep_every_acknowledged_edit(db, migrated_url):
     repo = repositories(db)
     a, b = shape_id(), shape_id()
     repo["shapes"].add(a, 1)
@@ -24,12 +24,12 @@ def test_threads_and_processes_keep_every_acknowledged_edit(db, db_url):
     lock = threading.Lock()
 
     def in_thread(prefix: str) -> None:
-        done = add_curves(db_url, record.id, prefix, EDITS)
+        done = add_curves(migrated_url, record.id, prefix, EDITS)
         with lock:
             acknowledged.extend(done)
 
     with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("spawn")) as pool:
-        processes = [pool.submit(add_curves, db_url, record.id, prefix, EDITS) for prefix in ("p", "q")]
+        processes = [pool.submit(add_curves, migrated_url, record.id, prefix, EDITS) for prefix in ("p", "q")]
         threads = [threading.Thread(target=in_thread, args=(prefix,)) for prefix in ("t", "u")]
         for t in threads:
             t.start()

@@ -6,7 +6,6 @@ from __future__ import annotations
 import time
 
 import pytest
-from support.records import fresh_database
 
 from curvefm.records import open_database
 from curvefm.workers.interface import JobFailure, JobInfo
@@ -14,8 +13,8 @@ from curvefm.workers.job_rows import DbJobRecords, StoredJob
 
 
 @pytest.fixture(params=["sqlite", "postgresql"])
-def records(request, tmp_path):
-    with fresh_database(request.param, tmp_path) as url:
+def records(request, tmp_path, migrated_templates):
+    with migrated_templates.copy(request.param, tmp_path) as url:
         database = open_database(url=url)
         yield DbJobRecords(database=database)
         database.dispose()

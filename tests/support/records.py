@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import os
 import secrets
+import shutil
 import time
 from array import array
 from collections.abc import Iterator
@@ -21,19 +22,74 @@ def fresh_database(kind: str, folder: Path) -> Iterator[str]:
     if kind == "sqlite":
         yield f"sqlite:///{folder / 'curvefm.db'}"
         return
-    psycopg = pytest.importorskip("psycopg")
-    try:
-        admin = psycopg.connect(POSTGRES, autocommit=True, connect_timeout=3)
-    except psycopg.OperationalError as exc:
-        pytest.skip(f"no PostgreSQL at {POSTGRES}: {exc}")
     name = f"curvefm_test_{secrets.token_hex(6)}"
-    with admin:
+    with _postgres_admin() as admin:
         admin.execute(f'CREATE DATABASE "{name}"')
         try:
-            base = POSTGRES.rsplit("/", 1)[0].replace("postgresql://", "postgresql+psycopg://", 1)
-            yield f"{base}/{name}"
+            yield f"{_postgres_base()}/{name}"
         finally:
             admin.execute(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
+
+
+class MigratedTemplates:
+    """Per engine, one database migrated to the newest schema (made on first use, dropped by :meth:`drop_all`), of
+    which each test gets a fresh copy: a copy costs a file copy or a ``CREATE DATABASE ... TEMPLATE`` where running
+    every migration again would cost far more (the migrations themselves are tested on empty databases)."""
+
+    def __init__(self, folder: Path) -> None:
+        self.folder = folder
+        self.urls: dict[str, str] = {}
+
+    def template(self, kind: str) -> str:
+        if kind not in self.urls:
+            from curvefm.records import open_database
+
+            url = self.urls[kind] = self._create(kind, f"curvefm_template_{secrets.token_hex(6)}")
+            open_database(url=url).dispose()  # migrated; no connection left, as a template database needs
+        return self.urls[kind]
+
+    def _create(self, kind: str, name: str, template: str | None = None) -> str:
+        if kind == "sqlite":
+            return f"sqlite:///{self.folder / f'{name}.db'}"
+        with _postgres_admin() as admin:
+            admin.execute(f'CREATE DATABASE "{name}"' + (f' TEMPLATE "{template}"' if template else ""))
+        return f"{_postgres_base()}/{name}"
+
+    @contextlib.contextmanager
+    def copy(self, kind: str, folder: Path) -> Iterator[str]:
+        """A URL of a new database of ``kind`` at the newest schema, with no rows; dropped afterwards."""
+        template = self.template(kind)
+        if kind == "sqlite":
+            copied = folder / "curvefm.db"
+            shutil.copyfile(template.removeprefix("sqlite:///"), copied)
+            yield f"sqlite:///{copied}"
+            return
+        name = f"curvefm_test_{secrets.token_hex(6)}"
+        url = self._create(kind, name, template=template.rsplit("/", 1)[1])
+        try:
+            yield url
+        finally:
+            with _postgres_admin() as admin:
+                admin.execute(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
+
+    def drop_all(self) -> None:
+        if "postgresql" in self.urls:
+            with _postgres_admin() as admin:
+                admin.execute(f'DROP DATABASE IF EXISTS "{self.urls["postgresql"].rsplit("/", 1)[1]}" WITH (FORCE)')
+        self.urls.clear()
+
+
+def _postgres_base() -> str:
+    return POSTGRES.rsplit("/", 1)[0].replace("postgresql://", "postgresql+psycopg://", 1)
+
+
+def _postgres_admin():
+    """An autocommit connection to the server's maintenance database; without the server a skip."""
+    psycopg = pytest.importorskip("psycopg")
+    try:
+        return psycopg.connect(POSTGRES, autocommit=True, connect_timeout=3)
+    except psycopg.OperationalError as exc:
+        pytest.skip(f"no PostgreSQL at {POSTGRES}: {exc}")
 
 
 class Databases:
@@ -44,7 +100,7 @@ class Databases:
 
     def __init__(self, admin) -> None:
         self.admin = admin  # an autocommit connection to the server's maintenance database
-        self.base = POSTGRES.rsplit("/", 1)[0].replace("postgresql://", "postgresql+psycopg://", 1)
+        self.base = _postgres_base()
         self.urls: dict[Path, str] = {}
 
     @classmethod
