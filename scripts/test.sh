@@ -9,6 +9,9 @@ cd "$(dirname "$0")/.."
 bash scripts/setup.sh test
 bash scripts/services.sh
 bash scripts/check.sh
+# The editable install leaves src/ uncompiled, and where PYTHONDONTWRITEBYTECODE is set every API, worker and CLI
+# process the tests start would compile it again.
+.venv/bin/python -m compileall -q src >/dev/null
 .venv/bin/python -m pytest -q "$@"
 
 POSTGRES_TESTS=(
