@@ -28,6 +28,7 @@ and per map the share of clicks that made it worse and the largest increase (abs
 
     CURVEFM_SHARED_DATA=../shared/data python -m benchmarks.bench_monotone [--curves 6] [--seeds 2]
         [--pairs suite|held-out] [--datasets faust cat-lion] [--directions source target] [--figures]
+        [--default-only]
 """
 
 from __future__ import annotations
@@ -107,20 +108,28 @@ def solved(solver: CombinedMapSolver, full_size_curves: int | None) -> Functiona
     return fmaps
 
 
-def click_errors(run: Run, combined: CombinedMapSolver, curve_energy: CurveMapSolver, curves, figures: bool) -> dict:
-    errors = {
-        "prior_size": error(run, solved(combined, NEVER), curves),
-        "full_size": error(run, solved(combined, 1), curves),
-        "curves": error(run, FunctionalMaps(curve_energy.C_MN, curve_energy.C_NM), curves),
-    }
+def click_errors(run: Run, combined: CombinedMapSolver, curve_energy: CurveMapSolver, curves, args) -> dict:
     shapes = run.loaded.shapes
     if curves_alone_suffice(shapes.basis_M, shapes.basis_N, curves):
-        errors["default"] = errors["curves"]
+        default = "curves"
     else:
-        errors["default"] = errors["full_size" if combined.full_size else "prior_size"]
-    if figures:
+        default = "full_size" if combined.full_size else "prior_size"
+    scorers = {
+        "prior_size": lambda: error(run, solved(combined, NEVER), curves),
+        "full_size": lambda: error(run, solved(combined, 1), curves),
+        "curves": lambda: error(run, FunctionalMaps(curve_energy.C_MN, curve_energy.C_NM), curves),
+    }
+    errors = {name: scorers[name]() for name in {default, *recorded_maps(args)} - {"default"}}
+    errors["default"] = errors[default]
+    if args.figures:
         errors |= size_errors(run, combined, curves) | intrinsic_figures(shapes, curves)
     return errors
+
+
+def recorded_maps(args) -> tuple[str, ...]:
+    """With ``--default-only`` the default and the 50 x 50 map (what the size switch replaced): a third of the
+    conversions."""
+    return ("default", "prior_size") if args.default_only else MAPS
 
 
 def size_errors(run: Run, combined: CombinedMapSolver, curves: Curves) -> dict:
@@ -153,7 +162,7 @@ def intrinsic_figures(shapes, curves) -> dict:
     }
 
 
-def run_clicks(run: Run, count: int, figures: bool) -> dict:
+def run_clicks(run: Run, count: int, args) -> dict:
     shapes = run.loaded.shapes
     curves = ground_truth_curves(shapes.mesh_M, shapes.mesh_N, run.loaded.truth, count, run.seed_vertex)
     solver_args = (shapes.mesh_M.vertices, shapes.basis_M, shapes.mesh_N.vertices, shapes.basis_N)
@@ -166,13 +175,14 @@ def run_clicks(run: Run, count: int, figures: bool) -> dict:
     for n, (path_M, path_N) in enumerate(curves, start=1):
         combined.add_curve(path_M, path_N)
         curve_energy.add_curve(path_M, path_N)
-        clicks.append(click_errors(run, combined, curve_energy, curves[:n], figures))
+        clicks.append(click_errors(run, combined, curve_energy, curves[:n], args))
     name = run.loaded.pair.name
     print(f"{name} seed {run.seed} {run.direction}: {len(curves)} clicks", file=sys.stderr, flush=True)
     out = {"pair": name, "dataset": run.loaded.pair.dataset, "seed": run.seed, "direction": run.direction}
-    out["errors"] = {m: [c[m] for c in clicks] for m in MAPS}
-    if figures:
+    out["errors"] = {m: [c[m] for c in clicks] for m in recorded_maps(args)}
+    if args.figures:
         out["figures"] = [{key: value for key, value in c.items() if key not in MAPS} for c in clicks]
+    print(json.dumps(out), file=sys.stderr, flush=True)  # a stopped benchmark keeps the runs it finished
     return out
 
 
@@ -192,9 +202,9 @@ def worsening(series: list[list[float]]) -> dict:
     }
 
 
-def summary(runs: list[dict]) -> dict:
+def summary(runs: list[dict], maps: tuple[str, ...]) -> dict:
     out = {}
-    for m in MAPS:
+    for m in maps:
         series = [r["errors"][m] for r in runs]
         out[m] = worsening(series) | {
             "mean_error_by_click": [round(float(np.mean(col)), 5) for col in _columns(series)],
@@ -214,6 +224,7 @@ def main() -> None:
     parser.add_argument("--directions", nargs="+", choices=("source", "target"), default=["source", "target"])
     parser.add_argument("--max-vertices", type=int, default=20_000, help="skip pairs with a bigger mesh")
     parser.add_argument("--figures", action="store_true", help="record the intrinsic figures and sizes per click")
+    parser.add_argument("--default-only", action="store_true", help="record the default and the 50 x 50 map only")
     add_pair_arguments(parser)
     parser.set_defaults(datasets=["faust", "cat-lion"])
     args = parser.parse_args()
@@ -227,7 +238,7 @@ def main() -> None:
             loaded = loaded_pair(pair, direction)
             for seed in range(args.seeds):
                 run = Run(loaded, seed, direction)
-                runs.append(run_clicks(run, min(args.curves, run.max_curves()), args.figures))
+                runs.append(run_clicks(run, min(args.curves, run.max_curves()), args))
     print(
         json.dumps(
             {
@@ -237,7 +248,7 @@ def main() -> None:
                 "pairs": args.pairs,
                 "error": "mean geodesic error / sqrt(area), rows not at a curve's end",
                 "maps": "source -> target, converted as curvefm match hands them out (its orthogonal steps)",
-                "summary": summary(runs),
+                "summary": summary(runs, recorded_maps(args)),
                 "runs": runs,
             }
         )

@@ -11,10 +11,12 @@ pyFM (PyPI ``pyfmaps``, extra ``bench``), as issue 35's filer ran it: WKS plus t
 nearest-neighbour conversion (``get_p2p``), one fit per direction; then its ``zoomout_refine`` from 50 to
 ``PYFM_ZOOMOUT_FINAL`` in steps of ``PYFM_ZOOMOUT_STEP`` (our ``zoomout``'s final size and step). Ours:
 :func:`curvefm.matching.match` with its defaults (``curvefm match``), and with ``--refine zoomout`` / ``--refine
-rhm`` (the guard's returned maps), given the same curves.
+rhm`` (the guard's returned maps), given the same curves. ``--no-pyfm`` leaves pyFM out (its rows do not change
+with our defaults) and ``--ours`` chooses our converters.
 
     nice python -m experiments.pyfm_both_directions [--pairs faust,cat_lion] [--counts 2,10]
-        [--endpoints-on source,target] [--out experiments/pyfm_both_directions.json]
+        [--endpoints-on source,target] [--no-pyfm] [--ours default,zoomout,rhm]
+        [--out experiments/pyfm_both_directions.json]
 """
 
 from __future__ import annotations
@@ -86,11 +88,13 @@ def pyfm_errors(meshes: tuple[Mesh, Mesh], pyfm_meshes: tuple[TriMesh, TriMesh],
     }
 
 
-def our_errors(meshes: tuple[Mesh, Mesh], curves, truth) -> dict:
-    """``curvefm match``'s maps with each converter in :data:`OURS`, their kept stage and seconds."""
+def our_errors(meshes: tuple[Mesh, Mesh], curves, truth, labels: list[str]) -> dict:
+    """``curvefm match``'s maps with the converters of :data:`OURS` named in ``labels``, their kept stage and
+    seconds."""
     mesh_M, mesh_N = meshes
     out = {}
-    for label, converter in OURS.items():
+    for label in labels:
+        converter = OURS[label]
         start = time.perf_counter()
         result = match(mesh_M, mesh_N, curves, converter=converter, store=bench_store())
         out[label] = both_ways(result.maps.p2p_MN, result.maps.p2p_NM, truth, mesh_M, mesh_N)
@@ -99,29 +103,27 @@ def our_errors(meshes: tuple[Mesh, Mesh], curves, truth) -> dict:
     return out
 
 
-def run_pair(name: str, counts: list[int], sides: list[str]) -> list[dict]:
+def run_pair(name: str, counts: list[int], sides: list[str], with_pyfm: bool, ours: list[str]) -> list[dict]:
     data = shared_data()
     source, target = (data / p for p in PAIRS[name])
     meshes = load_mesh(source), load_mesh(target)
     truth = ground_truth_for(source, target, *meshes)
-    pyfm_meshes = tuple(
-        TriMesh(m.vertices, m.faces, area_normalize=True, center=True).process(k=PYFM_EIGENPAIRS) for m in meshes
-    )
+    if with_pyfm:
+        pyfm_meshes = tuple(
+            TriMesh(m.vertices, m.faces, area_normalize=True, center=True).process(k=PYFM_EIGENPAIRS) for m in meshes
+        )
     rows = []
     for count in counts:
         for side in sides:
             curves = ground_truth_curves(*meshes, truth, count, endpoints_on=side)
             scored = truth_to_score(truth, curves, 0, side)
             row = {"pair": name, "curves": count, "endpoints_on": side, "scored_rows": len(scored)}
-            row |= pyfm_errors(meshes, pyfm_meshes, curves, scored) | our_errors(meshes, curves, scored)
+            if with_pyfm:
+                row |= pyfm_errors(meshes, pyfm_meshes, curves, scored)
+            row |= our_errors(meshes, curves, scored, ours)
             direction = HEADLINE[side]
-            print(
-                f"{name} {count} curves on the {side}, {direction}: pyFM {row['pyfm'][direction]} "
-                f"(ZoomOut {row['pyfm_zoomout'][direction]}), ours {row['default'][direction]} "
-                f"(ZoomOut {row['zoomout'][direction]}, RHM {row['rhm'][direction]})",
-                file=sys.stderr,
-                flush=True,
-            )
+            cells = [f"{label} {row[label][direction]}" for label in ("pyfm", "pyfm_zoomout", *ours) if label in row]
+            print(f"{name} {count} curves on the {side}, {direction}: {', '.join(cells)}", file=sys.stderr, flush=True)
             rows.append(row)
     return rows
 
@@ -138,6 +140,8 @@ def main() -> None:
     parser.add_argument("--pairs", default=",".join(PAIRS))
     parser.add_argument("--counts", default="2,10")
     parser.add_argument("--endpoints-on", default=",".join(ENDPOINT_SIDES))
+    parser.add_argument("--no-pyfm", dest="pyfm", action="store_false", help="leave pyFM's maps out")
+    parser.add_argument("--ours", default=",".join(OURS), help="our converters' labels (default, zoomout, rhm)")
     parser.add_argument("--out", type=Path, default=None, help="also write the JSON here")
     args = parser.parse_args()
     limit_blas_threads(1)
@@ -153,9 +157,12 @@ def main() -> None:
         f"{PYFM_K} -> {PYFM_ZOOMOUT_FINAL} step {PYFM_ZOOMOUT_STEP}",
         "ours": "curvefm.matching.match defaults (curvefm match), --refine zoomout / rhm",
     }
+    if not args.pyfm:
+        report["pyfm"] = "not run (--no-pyfm)"
     start = time.perf_counter()
     counts = [int(c) for c in args.counts.split(",")]
-    rows = [row for name in args.pairs.split(",") for row in run_pair(name, counts, args.endpoints_on.split(","))]
+    sides, ours = args.endpoints_on.split(","), args.ours.split(",")
+    rows = [row for name in args.pairs.split(",") for row in run_pair(name, counts, sides, args.pyfm, ours)]
     report["machine"]["load_avg_1min_after"] = round(os.getloadavg()[0], 2)
     report["seconds"] = round(time.perf_counter() - start)
     report["rows"] = rows
