@@ -381,8 +381,8 @@ _UPDATE_FROM = update(m.Session).where(
     m.Session.id == bindparam("at_id"), m.Session.revision == bindparam("at_revision")
 )
 """The session's row if still at the revision read (its new values are the execution's other parameters)."""
-_DELETE_CURVES = delete(m.Curve).where(
-    m.Curve.session_id == bindparam("session_id"), m.Curve.id.in_(bindparam("ids", expanding=True))
+_DELETE_CURVE = delete(m.Curve).where(  # one id a row of parameters: an expanding IN is rendered anew each time
+    m.Curve.session_id == bindparam("in_session"), m.Curve.id == bindparam("curve")
 )
 _MOVE_CURVE = (
     update(m.Curve)
@@ -452,7 +452,7 @@ def _write_changed_curves(
         elif position != old_position:
             moved.append({"in_session": session_id, "curve": curve.id, "to": position})
     if gone:
-        conn.execute(_DELETE_CURVES, {"session_id": session_id, "ids": gone})
+        conn.execute(_DELETE_CURVE, [{"in_session": session_id, "curve": curve_id} for curve_id in gone])
     if moved:
         conn.execute(_MOVE_CURVE, moved)
     _insert_curves(conn, session_id, added)
