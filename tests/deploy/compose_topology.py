@@ -23,6 +23,7 @@ from support.shapes import save_demo_shapes
 
 from curvefm.client import Client, Job
 from curvefm.service.demo import demo_shapes
+from curvefm.service.models import ErrorBody
 
 K = 20
 CURVES = [([10, 2000], [10, 2000]), ([500, 3500], [500, 3500]), ([100, 4000], [100, 4000])]
@@ -167,3 +168,25 @@ def test_the_api_replicas_both_answer_after_the_restarts(client):
         time.sleep(1)
     totals = {client.page("/sessions", limit=1)[1] for _ in range(6)}
     assert totals == {1}, f"the replicas disagree on the number of sessions: {totals}"
+
+
+def test_with_no_replica_up_the_proxy_answers_503_in_the_error_schema_with_retry_after():
+    """Both replicas down (an upgrade, or both left out by a failed health check on a loaded host): the request
+    reached no replica, so the proxy says when to send it again, in the API's own error schema (deploy/Caddyfile)."""
+    url = setting("CURVEFM_DEPLOY_URL")
+    for name in ("api", "api-2"):
+        podman("stop", container(name))
+    try:
+        deadline = time.monotonic() + 60
+        while (health := httpx.get(f"{url}/health", timeout=30)).status_code != 503:
+            assert time.monotonic() < deadline, f"the proxy still answers {health.status_code} with no replica up"
+            time.sleep(1)
+        answer = httpx.post(f"{url}/sessions", json={}, timeout=30)
+        assert answer.status_code == 503, answer.text
+        assert answer.headers["retry-after"] == "5", answer.headers
+        assert ErrorBody.model_validate(answer.json()).error == "unavailable"
+    finally:
+        for name in ("api", "api-2"):
+            podman("start", container(name))
+        for name in ("api", "api-2"):
+            until_healthy(name)
