@@ -141,6 +141,21 @@ class RhmParams(BaseModel):
         "else the nearest-neighbour maps) goes to that image (0: off)",
     )
 
+    curve_band: float = Field(
+        0.0,
+        ge=0,
+        description="after every projection, an inner vertex of a curve whose image lies farther than this (units "
+        "of sqrt(area), geodesic embedding) from the partner curve goes to the partner curve's vertex nearest it in "
+        "the projection's embedding: the traced interiors as soft evidence, a curve to a curve (0: off)",
+    )
+
+    pin_weight: float = Field(
+        0.0,
+        ge=0,
+        description="extra coupling weight (per vertex area) of the pinned curve ends' continuous images to their "
+        "pins, from the first iteration: the ends act on their neighbours through the smooth images (0: off)",
+    )
+
     @model_validator(mode="after")
     def _consistent(self) -> RhmParams:
         if self.beta_max < self.beta:
@@ -172,6 +187,7 @@ class _Map:
     X: np.ndarray
     pinned: np.ndarray  # (n_domain,) the image vertex each domain vertex must map to, FREE (-1) if none
     anchor: np.ndarray | None = None  # (n_domain,) each domain vertex's image vertex under the anchor maps
+    bands: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)  # (inner domain path, image path)
 
 
 def prepare_shape(mesh: Mesh, params: RhmParams) -> _Shape:
@@ -205,7 +221,41 @@ def near_anchor(p2p: np.ndarray, anchor: np.ndarray | None, image_X: np.ndarray,
     return np.where(np.linalg.norm(image_X[p2p] - image_X[anchor], axis=1) > radius, anchor, p2p)
 
 
-def project(fwd: _Map, back: _Map, alpha: float, beta: float, projection: str, radius: float = 0.0) -> None:
+def near_curves(
+    p2p: np.ndarray,
+    bands: list[tuple[np.ndarray, np.ndarray]],
+    image_X: np.ndarray,
+    data: np.ndarray,
+    queries: np.ndarray,
+    band: float,
+) -> np.ndarray:
+    """``p2p`` with each inner curve vertex whose image lies farther than ``band`` (image embedding ``image_X``)
+    from the partner curve sent to the partner curve's vertex nearest it in the projection embedding
+    (``data``, ``queries`` of :func:`projection_embeddings`)."""
+    p2p = p2p.copy()
+    for inner, path in bands:
+        if not len(inner):
+            continue
+        off = cast(np.ndarray, cKDTree(image_X[path]).query(image_X[p2p[inner]])[0]) > band
+        if off.any():
+            rows = inner[off]
+            p2p[rows] = path[cast(np.ndarray, cKDTree(data[path]).query(queries[rows])[1])]
+    return p2p
+
+
+def curve_bands(paths: Curves) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]:
+    """Per curve, its inner vertices and its partner's whole path, M -> N and N -> M."""
+    MN, NM = [], []
+    for path_M, path_N in paths:
+        path_M, path_N = np.asarray(path_M, dtype=np.int64), np.asarray(path_N, dtype=np.int64)
+        MN.append((path_M[1:-1], path_N))
+        NM.append((path_N[1:-1], path_M))
+    return MN, NM
+
+
+def project(
+    fwd: _Map, back: _Map, alpha: float, beta: float, projection: str, radius: float = 0.0, band: float = 0.0
+) -> None:
     """Update ``fwd.P`` and ``fwd.p2p``: each domain vertex y goes to the point x of the image minimising
     ``(1 - alpha) |back.X(x) - X_domain(y)|^2 + beta |X_image(x) - fwd.X(y)|^2`` (reversibility, coupling);
     with vertex projection any vertex whose image lies farther than ``radius`` from its image under ``fwd.anchor``
@@ -214,6 +264,8 @@ def project(fwd: _Map, back: _Map, alpha: float, beta: float, projection: str, r
     if projection == "vertex":
         nearest = cast(np.ndarray, cKDTree(data).query(queries, workers=-1)[1])  # many queries: an array
         anchored = near_anchor(nearest, fwd.anchor, fwd.image.X, radius)
+        if band > 0:
+            anchored = near_curves(anchored, fwd.bands, fwd.image.X, data, queries, band)
         fwd.p2p = np.where(fwd.pinned >= 0, fwd.pinned, anchored)
         fwd.P = vertex_rows(fwd.p2p, len(data))
         return
@@ -226,11 +278,13 @@ def project(fwd: _Map, back: _Map, alpha: float, beta: float, projection: str, r
     fwd.p2p = corners[np.arange(len(corners)), np.argmax(weights, axis=1)]
 
 
-def solve_image(fwd: _Map, back: _Map, alpha: float, beta: float) -> None:
-    """Update ``fwd.X``: the minimiser of its Dirichlet, reversibility and coupling terms."""
+def solve_image(fwd: _Map, back: _Map, alpha: float, beta: float, pin_weight: float = 0.0) -> None:
+    """Update ``fwd.X``: the minimiser of its Dirichlet, reversibility and coupling terms (the coupling of pinned
+    vertices raised by ``pin_weight``)."""
     dom, img = fwd.domain, fwd.image
-    K = alpha * dom.L + (1 - alpha) * (back.P.T @ sp.diags(img.mass) @ back.P) + beta * sp.diags(dom.mass)
-    rhs = (1 - alpha) * (back.P.T @ (img.mass[:, None] * img.X)) + beta * dom.mass[:, None] * (fwd.P @ img.X)
+    coupling = beta * dom.mass + pin_weight * dom.mass * (fwd.pinned >= 0)
+    K = alpha * dom.L + (1 - alpha) * (back.P.T @ sp.diags(img.mass) @ back.P) + sp.diags(coupling)
+    rhs = (1 - alpha) * (back.P.T @ (img.mass[:, None] * img.X)) + coupling[:, None] * (fwd.P @ img.X)
     # K is symmetric positive definite: a symmetric ordering and no pivoting factorise it 15% faster
     lu = splu(K.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
     fwd.X = lu.solve(rhs)
@@ -303,7 +357,13 @@ class Rhm(IterativeRefiner[RhmParams, _Iterate]):
         return RhmStart(maps, CurvePins.from_curves(pair.mesh_M, pair.mesh_N, curves), anchor=anchor)
 
     def begin(
-        self, maps: PointwiseMaps, shape_M: _Shape, shape_N: _Shape, pins: CurvePins, anchor: PointwiseMaps | None
+        self,
+        maps: PointwiseMaps,
+        shape_M: _Shape,
+        shape_N: _Shape,
+        pins: CurvePins,
+        anchor: PointwiseMaps | None,
+        curves: Curves = (),
     ) -> _Iterate:
         """Both maps from ``maps`` with the curves pinned, as vertex rows, and their continuous images."""
         p2p_MN, p2p_NM = pins.pin_MN(maps.p2p_MN), pins.pin_NM(maps.p2p_NM)
@@ -311,6 +371,7 @@ class Rhm(IterativeRefiner[RhmParams, _Iterate]):
         anchor_MN, anchor_NM = (None, None) if anchor is None else (anchor.p2p_MN, anchor.p2p_NM)
         MN = _Map(shape_M, shape_N, P_MN, p2p_MN, P_MN @ shape_N.X, pins.M_to_N, anchor_MN)
         NM = _Map(shape_N, shape_M, P_NM, p2p_NM, P_NM @ shape_M.X, pins.N_to_M, anchor_NM)
+        MN.bands, NM.bands = curve_bands(curves)
         return _Iterate(MN, NM)
 
     def schedule(self, state: _Iterate, params: RhmParams) -> range:
@@ -320,8 +381,8 @@ class Rhm(IterativeRefiner[RhmParams, _Iterate]):
         state.beta = beta = min(t * params.beta, params.beta_max)
         MN, NM = state.MN, state.NM
         for fwd, back in ((NM, MN), (MN, NM)):
-            project(fwd, back, params.alpha, beta, params.projection, params.anchor_radius)
-            solve_image(fwd, back, params.alpha, beta)
+            project(fwd, back, params.alpha, beta, params.projection, params.anchor_radius, params.curve_band)
+            solve_image(fwd, back, params.alpha, beta, params.pin_weight)
         state.energies.append(energy(MN, NM, params.alpha, beta) + energy(NM, MN, params.alpha, beta))
         return t >= params.min_iterations and settled(state.energies, params.tol)
 
@@ -363,7 +424,7 @@ class Rhm(IterativeRefiner[RhmParams, _Iterate]):
         shape_M = prepare_shape(pair.mesh_M, params)
         progress(0.35, "geodesic embedding of the target")
         shape_N = prepare_shape(pair.mesh_N, params)
-        state = self.begin(start.maps, shape_M, shape_N, start.pins, start.anchor)
+        state = self.begin(start.maps, shape_M, shape_N, start.pins, start.anchor, curves)
         self.iterate(state, params, scaled(progress, 0.4, 1.0))
         return PointwiseMaps(p2p_NM=state.NM.p2p, p2p_MN=state.MN.p2p)
 
