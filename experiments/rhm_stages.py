@@ -49,7 +49,7 @@ def rhm_stages(pair, fmaps, curves, scored, start, overrides: dict) -> dict:
     if from_anchor:
         rhm_start = RhmStart(rhm_start.anchor, rhm_start.pins, anchor=rhm_start.anchor)
     shape_M, shape_N = prepare_shape(pair.mesh_M, params), prepare_shape(pair.mesh_N, params)
-    state = REFINER.begin(rhm_start.maps, shape_M, shape_N, rhm_start.pins, rhm_start.anchor, curves)
+    state = REFINER.begin(rhm_start.maps, shape_M, shape_N, rhm_start.pins, rhm_start.anchor)
     REFINER.iterate(state, params, lambda *_: None)
     rhm = PointwiseMaps(p2p_NM=state.NM.p2p, p2p_MN=state.MN.p2p)
     reference = measure(pair, start, curves)

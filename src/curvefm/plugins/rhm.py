@@ -19,7 +19,10 @@ sparse SPD solve ``(alpha L + (1 - alpha) P^T A P + beta_t A) X = rhs``. beta_t 
 changes by less than ``tol`` (relative) over five iterations.
 
 The ends of the user's curves stay pinned (:class:`~curvefm.pointwise.CurvePins`): after every projection each
-end maps to the same end of its partner curve (the exact vertex, also with triangle projection). The curves'
+end maps to the same end of its partner curve (the exact vertex, also with triangle projection), and in every solve
+an end's continuous image is coupled to its pin with ``pin_weight`` (10, per vertex area) on top of beta_t, so the
+exact points shape the smooth images, and through them their neighbours' projections, from the first iteration
+(with the coupling alone, 0.005 at first, more curves did not help RHM on cat -> lion; issue 35). The curves'
 inner vertices are free: their arc-length partners were farther from the truth than the map's own images
 (docs/decisions.md#curve-pins); RHM's ZoomOut start ignores them too by default.
 
@@ -98,6 +101,11 @@ RHM_DENSE_UP_TO = 20_000
 #: 0.0263, and with 2 curves 0.0301 / 0.0238 / 0.0234 against 0.0382 (docs/decisions.md#the-refinement-guard)
 # chosen in docs/decisions.md#the-refinement-guard
 ANCHOR_RADIUS = 0.15
+#: the pinned ends' continuous images are coupled to their pins with this weight (per vertex area) from the first
+#: iteration, against the coupling's 0.005 rising to 0.5: from 10 curves on cat -> lion (endpoints on the lion) RHM
+#: ended at 0.0225 / 0.0186 instead of 0.0231 / 0.0189, no worse than from 2; 1000 made 10 curves worse than 2 there
+# chosen in docs/decisions.md#curve-pins
+PIN_WEIGHT = 10.0
 
 
 class RhmParams(BaseModel):
@@ -140,17 +148,8 @@ class RhmParams(BaseModel):
         "geodesic embedding) from its image under the anchor maps (ZoomOut's start where the guard accepts it, "
         "else the nearest-neighbour maps) goes to that image (0: off)",
     )
-
-    curve_band: float = Field(
-        0.0,
-        ge=0,
-        description="after every projection, an inner vertex of a curve whose image lies farther than this (units "
-        "of sqrt(area), geodesic embedding) from the partner curve goes to the partner curve's vertex nearest it in "
-        "the projection's embedding: the traced interiors as soft evidence, a curve to a curve (0: off)",
-    )
-
     pin_weight: float = Field(
-        0.0,
+        PIN_WEIGHT,
         ge=0,
         description="extra coupling weight (per vertex area) of the pinned curve ends' continuous images to their "
         "pins, from the first iteration: the ends act on their neighbours through the smooth images (0: off)",
@@ -187,7 +186,6 @@ class _Map:
     X: np.ndarray
     pinned: np.ndarray  # (n_domain,) the image vertex each domain vertex must map to, FREE (-1) if none
     anchor: np.ndarray | None = None  # (n_domain,) each domain vertex's image vertex under the anchor maps
-    bands: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)  # (inner domain path, image path)
 
 
 def prepare_shape(mesh: Mesh, params: RhmParams) -> _Shape:
@@ -221,41 +219,7 @@ def near_anchor(p2p: np.ndarray, anchor: np.ndarray | None, image_X: np.ndarray,
     return np.where(np.linalg.norm(image_X[p2p] - image_X[anchor], axis=1) > radius, anchor, p2p)
 
 
-def near_curves(
-    p2p: np.ndarray,
-    bands: list[tuple[np.ndarray, np.ndarray]],
-    image_X: np.ndarray,
-    data: np.ndarray,
-    queries: np.ndarray,
-    band: float,
-) -> np.ndarray:
-    """``p2p`` with each inner curve vertex whose image lies farther than ``band`` (image embedding ``image_X``)
-    from the partner curve sent to the partner curve's vertex nearest it in the projection embedding
-    (``data``, ``queries`` of :func:`projection_embeddings`)."""
-    p2p = p2p.copy()
-    for inner, path in bands:
-        if not len(inner):
-            continue
-        off = cast(np.ndarray, cKDTree(image_X[path]).query(image_X[p2p[inner]])[0]) > band
-        if off.any():
-            rows = inner[off]
-            p2p[rows] = path[cast(np.ndarray, cKDTree(data[path]).query(queries[rows])[1])]
-    return p2p
-
-
-def curve_bands(paths: Curves) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]:
-    """Per curve, its inner vertices and its partner's whole path, M -> N and N -> M."""
-    MN, NM = [], []
-    for path_M, path_N in paths:
-        path_M, path_N = np.asarray(path_M, dtype=np.int64), np.asarray(path_N, dtype=np.int64)
-        MN.append((path_M[1:-1], path_N))
-        NM.append((path_N[1:-1], path_M))
-    return MN, NM
-
-
-def project(
-    fwd: _Map, back: _Map, alpha: float, beta: float, projection: str, radius: float = 0.0, band: float = 0.0
-) -> None:
+def project(fwd: _Map, back: _Map, alpha: float, beta: float, projection: str, radius: float = 0.0) -> None:
     """Update ``fwd.P`` and ``fwd.p2p``: each domain vertex y goes to the point x of the image minimising
     ``(1 - alpha) |back.X(x) - X_domain(y)|^2 + beta |X_image(x) - fwd.X(y)|^2`` (reversibility, coupling);
     with vertex projection any vertex whose image lies farther than ``radius`` from its image under ``fwd.anchor``
@@ -264,8 +228,6 @@ def project(
     if projection == "vertex":
         nearest = cast(np.ndarray, cKDTree(data).query(queries, workers=-1)[1])  # many queries: an array
         anchored = near_anchor(nearest, fwd.anchor, fwd.image.X, radius)
-        if band > 0:
-            anchored = near_curves(anchored, fwd.bands, fwd.image.X, data, queries, band)
         fwd.p2p = np.where(fwd.pinned >= 0, fwd.pinned, anchored)
         fwd.P = vertex_rows(fwd.p2p, len(data))
         return
@@ -357,13 +319,7 @@ class Rhm(IterativeRefiner[RhmParams, _Iterate]):
         return RhmStart(maps, CurvePins.from_curves(pair.mesh_M, pair.mesh_N, curves), anchor=anchor)
 
     def begin(
-        self,
-        maps: PointwiseMaps,
-        shape_M: _Shape,
-        shape_N: _Shape,
-        pins: CurvePins,
-        anchor: PointwiseMaps | None,
-        curves: Curves = (),
+        self, maps: PointwiseMaps, shape_M: _Shape, shape_N: _Shape, pins: CurvePins, anchor: PointwiseMaps | None
     ) -> _Iterate:
         """Both maps from ``maps`` with the curves pinned, as vertex rows, and their continuous images."""
         p2p_MN, p2p_NM = pins.pin_MN(maps.p2p_MN), pins.pin_NM(maps.p2p_NM)
@@ -371,7 +327,6 @@ class Rhm(IterativeRefiner[RhmParams, _Iterate]):
         anchor_MN, anchor_NM = (None, None) if anchor is None else (anchor.p2p_MN, anchor.p2p_NM)
         MN = _Map(shape_M, shape_N, P_MN, p2p_MN, P_MN @ shape_N.X, pins.M_to_N, anchor_MN)
         NM = _Map(shape_N, shape_M, P_NM, p2p_NM, P_NM @ shape_M.X, pins.N_to_M, anchor_NM)
-        MN.bands, NM.bands = curve_bands(curves)
         return _Iterate(MN, NM)
 
     def schedule(self, state: _Iterate, params: RhmParams) -> range:
@@ -381,7 +336,7 @@ class Rhm(IterativeRefiner[RhmParams, _Iterate]):
         state.beta = beta = min(t * params.beta, params.beta_max)
         MN, NM = state.MN, state.NM
         for fwd, back in ((NM, MN), (MN, NM)):
-            project(fwd, back, params.alpha, beta, params.projection, params.anchor_radius, params.curve_band)
+            project(fwd, back, params.alpha, beta, params.projection, params.anchor_radius)
             solve_image(fwd, back, params.alpha, beta, params.pin_weight)
         state.energies.append(energy(MN, NM, params.alpha, beta) + energy(NM, MN, params.alpha, beta))
         return t >= params.min_iterations and settled(state.energies, params.tol)
@@ -424,7 +379,7 @@ class Rhm(IterativeRefiner[RhmParams, _Iterate]):
         shape_M = prepare_shape(pair.mesh_M, params)
         progress(0.35, "geodesic embedding of the target")
         shape_N = prepare_shape(pair.mesh_N, params)
-        state = self.begin(start.maps, shape_M, shape_N, start.pins, start.anchor, curves)
+        state = self.begin(start.maps, shape_M, shape_N, start.pins, start.anchor)
         self.iterate(state, params, scaled(progress, 0.4, 1.0))
         return PointwiseMaps(p2p_NM=state.NM.p2p, p2p_MN=state.MN.p2p)
 
