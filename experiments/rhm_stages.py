@@ -69,17 +69,19 @@ def rhm_stages(pair, fmaps, curves, scored, start, overrides: dict) -> dict:
     }
 
 
-def row(source: str, target: str, side: str, count: int, variants: dict) -> dict:
+def row(source: str, target: str, side: str, count: int, variants: dict, with_zoomout: bool = True) -> dict:
+    """One row: the handed-out maps, ``zoomout`` through the guard (unless not ``with_zoomout``) and every variant."""
     pair, truth = ground_truth_pair(source, target)
     curves = ground_truth_curves(pair.mesh_M, pair.mesh_N, truth, count, endpoints_on=side)
     scored = truth_to_score(truth, curves, 0, side)
     method, method_params = registry.load("method", "combined", None)
     fmaps = method.run(pair.truncated(DEFAULT_K), Hints.from_curves(curves), method_params, lambda *_: None)
     start = handed_out(pair, fmaps)
-    zoomout, zoomout_params = registry.load("converter", "zoomout", None)
-    returned = convert(pair, fmaps, zoomout, zoomout_params, paths=curves)
     out = {"pair": f"{source}->{target}", "side": side, "curves": count, "start": errors(pair, start, scored)}
-    out["zoomout_returned"] = [*errors(pair, returned.maps, scored), returned.kept]
+    if with_zoomout:
+        zoomout, zoomout_params = registry.load("converter", "zoomout", None)
+        returned = convert(pair, fmaps, zoomout, zoomout_params, paths=curves)
+        out["zoomout_returned"] = [*errors(pair, returned.maps, scored), returned.kept]
     for name, overrides in variants.items():
         out[name] = rhm_stages(pair, fmaps, curves, scored, start, overrides)
     return out

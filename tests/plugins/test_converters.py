@@ -20,7 +20,14 @@ from curvefm.evaluation import evaluate_map, ground_truth_curves, ground_truth_f
 from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K, DEFAULT_SAMPLES, FunctionalMaps
 from curvefm.geometry import load_mesh
 from curvefm.matching import MatchResult, convert, match
-from curvefm.plugins.rhm import ANCHOR_RADIUS, RhmParams, prepare_shape, reversible_harmonic_maps
+from curvefm.plugins.rhm import (
+    ANCHOR_RADIUS,
+    ENERGY_WINDOW,
+    PIN_WEIGHT,
+    RhmParams,
+    prepare_shape,
+    reversible_harmonic_maps,
+)
 from curvefm.pointwise import (
     AUTO_SAMPLES,
     CurvePins,
@@ -173,6 +180,24 @@ def test_rhm_keeps_every_image_within_the_anchor_radius_of_the_nearest_neighbour
             np.linalg.norm(shapes[0].X[NM.p2p] - shapes[0].X[start.p2p_NM], axis=1)[free_N].max(),
         )
     assert farthest[ANCHOR_RADIUS] <= ANCHOR_RADIUS < farthest[0.0], farthest
+
+
+def test_rhm_pin_weight_ties_the_pinned_ends_continuous_images_to_their_pins(faust):
+    """The curves' ends are exact: with ``pin_weight`` their continuous images (which carry the smoothness and the
+    reversibility) are drawn to their pins from the first iterations, where the coupling alone (beta 0.005 rising)
+    leaves them farther off (after 3 iterations on FAUST, 10 curves: 0.0082 against 0.0163, unit area)."""
+    pair = faust.result.pair
+    plugin, parsed = registry.load("converter", "nearest-neighbor", None)
+    start = plugin.run(pair, faust.result.fmaps, parsed)
+    params = RhmParams(max_iterations=3, min_iterations=ENERGY_WINDOW + 1)
+    shapes = prepare_shape(pair.mesh_M, params), prepare_shape(pair.mesh_N, params)
+    pins = CurvePins.from_curves(pair.mesh_M, pair.mesh_N, faust.result.paths)
+    pinned = pins.M_to_N != FREE
+    off = {}
+    for weight in (0.0, PIN_WEIGHT):
+        MN, _, _ = reversible_harmonic_maps(start, *shapes, params.model_copy(update={"pin_weight": weight}), pins=pins)
+        off[weight] = np.linalg.norm(MN.X[pinned] - shapes[1].X[pins.M_to_N[pinned]], axis=1).mean()
+    assert off[PIN_WEIGHT] < 0.7 * off[0.0], off
 
 
 def test_rhm_reports_progress_and_stops_when_cancelled(faust):

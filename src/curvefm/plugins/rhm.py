@@ -19,7 +19,10 @@ sparse SPD solve ``(alpha L + (1 - alpha) P^T A P + beta_t A) X = rhs``. beta_t 
 changes by less than ``tol`` (relative) over five iterations.
 
 The ends of the user's curves stay pinned (:class:`~curvefm.pointwise.CurvePins`): after every projection each
-end maps to the same end of its partner curve (the exact vertex, also with triangle projection). The curves'
+end maps to the same end of its partner curve (the exact vertex, also with triangle projection), and in every solve
+an end's continuous image is coupled to its pin with ``pin_weight`` (10, per vertex area) on top of beta_t, so the
+exact points shape the smooth images, and through them their neighbours' projections, from the first iteration
+(with the coupling alone, 0.005 at first, more curves did not help RHM on cat -> lion; issue 35). The curves'
 inner vertices are free: their arc-length partners were farther from the truth than the map's own images
 (docs/decisions.md#curve-pins); RHM's ZoomOut start ignores them too by default.
 
@@ -98,6 +101,11 @@ RHM_DENSE_UP_TO = 20_000
 #: 0.0263, and with 2 curves 0.0301 / 0.0238 / 0.0234 against 0.0382 (docs/decisions.md#the-refinement-guard)
 # chosen in docs/decisions.md#the-refinement-guard
 ANCHOR_RADIUS = 0.15
+#: the pinned ends' continuous images are coupled to their pins with this weight (per vertex area) from the first
+#: iteration, against the coupling's 0.005 rising to 0.5: from 10 curves on cat -> lion (endpoints on the lion) RHM
+#: ended at 0.0225 / 0.0186 instead of 0.0231 / 0.0189, no worse than from 2; 1000 made 10 curves worse than 2 there
+# chosen in docs/decisions.md#curve-pins
+PIN_WEIGHT = 10.0
 
 
 class RhmParams(BaseModel):
@@ -139,6 +147,12 @@ class RhmParams(BaseModel):
         description="after every projection, a vertex whose image lies farther than this (units of sqrt(area), "
         "geodesic embedding) from its image under the anchor maps (ZoomOut's start where the guard accepts it, "
         "else the nearest-neighbour maps) goes to that image (0: off)",
+    )
+    pin_weight: float = Field(
+        PIN_WEIGHT,
+        ge=0,
+        description="extra coupling weight (per vertex area) of the pinned curve ends' continuous images to their "
+        "pins, from the first iteration: the ends act on their neighbours through the smooth images (0: off)",
     )
 
     @model_validator(mode="after")
@@ -226,11 +240,13 @@ def project(fwd: _Map, back: _Map, alpha: float, beta: float, projection: str, r
     fwd.p2p = corners[np.arange(len(corners)), np.argmax(weights, axis=1)]
 
 
-def solve_image(fwd: _Map, back: _Map, alpha: float, beta: float) -> None:
-    """Update ``fwd.X``: the minimiser of its Dirichlet, reversibility and coupling terms."""
+def solve_image(fwd: _Map, back: _Map, alpha: float, beta: float, pin_weight: float = 0.0) -> None:
+    """Update ``fwd.X``: the minimiser of its Dirichlet, reversibility and coupling terms (the coupling of pinned
+    vertices raised by ``pin_weight``)."""
     dom, img = fwd.domain, fwd.image
-    K = alpha * dom.L + (1 - alpha) * (back.P.T @ sp.diags(img.mass) @ back.P) + beta * sp.diags(dom.mass)
-    rhs = (1 - alpha) * (back.P.T @ (img.mass[:, None] * img.X)) + beta * dom.mass[:, None] * (fwd.P @ img.X)
+    coupling = beta * dom.mass + pin_weight * dom.mass * (fwd.pinned >= 0)
+    K = alpha * dom.L + (1 - alpha) * (back.P.T @ sp.diags(img.mass) @ back.P) + sp.diags(coupling)
+    rhs = (1 - alpha) * (back.P.T @ (img.mass[:, None] * img.X)) + coupling[:, None] * (fwd.P @ img.X)
     # K is symmetric positive definite: a symmetric ordering and no pivoting factorise it 15% faster
     lu = splu(K.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
     fwd.X = lu.solve(rhs)
@@ -321,7 +337,7 @@ class Rhm(IterativeRefiner[RhmParams, _Iterate]):
         MN, NM = state.MN, state.NM
         for fwd, back in ((NM, MN), (MN, NM)):
             project(fwd, back, params.alpha, beta, params.projection, params.anchor_radius)
-            solve_image(fwd, back, params.alpha, beta)
+            solve_image(fwd, back, params.alpha, beta, params.pin_weight)
         state.energies.append(energy(MN, NM, params.alpha, beta) + energy(NM, MN, params.alpha, beta))
         return t >= params.min_iterations and settled(state.energies, params.tol)
 
