@@ -103,20 +103,10 @@ def error(run: Run, fmaps: FunctionalMaps, curves: Curves) -> float:
     shapes = run.loaded.shapes
     maps = handed_out(shapes, fmaps)
     scored = handed_out_errors(shapes, maps, run.loaded.truth, curves, ["source_to_target"])["source_to_target"]
-    _SCORED.clear() if len(_SCORED) > 64 else None
+    if len(_SCORED) > 64:
+        _SCORED.clear()
     _SCORED[key] = scored
     return scored
-
-
-def grown(solver: CombinedMapSolver, candidate: str) -> FunctionalMaps:
-    """The solver's maps with the size grown with the curves' length (``--grow`` candidate ``GROWTH:WEIGHTS``)."""
-    growth, weights = candidate.split(":")
-    solver.size_growth, solver.size_weights = float(growth), weights
-    solver._stale.update(("MN", "NM"))
-    fmaps = FunctionalMaps(solver.C_MN, solver.C_NM)
-    solver.size_growth, solver.size_weights = None, "interpolated"
-    solver._stale.update(("MN", "NM"))
-    return fmaps
 
 
 def solved(solver: CombinedMapSolver, full_size_curves: int | None) -> FunctionalMaps:
@@ -140,12 +130,8 @@ def click_errors(run: Run, combined: CombinedMapSolver, curve_energy: CurveMapSo
         "full_size": lambda: error(run, solved(combined, 1), curves),
         "curves": lambda: error(run, FunctionalMaps(curve_energy.C_MN, curve_energy.C_NM), curves),
     }
-    for candidate in args.grow:
-        scorers[f"grow_{candidate}"] = lambda c=candidate: error(run, grown(combined, c), curves)
     errors = {name: scorers[name]() for name in sorted({default, *recorded_maps(args)} - {"default"})}
     errors["default"] = errors[default]
-    if args.grow:
-        errors["grown_size"] = grown_sizes(combined, args.grow)
     if args.figures:
         errors |= size_errors(run, combined, curves) | intrinsic_figures(shapes, curves)
     return errors
@@ -153,17 +139,8 @@ def click_errors(run: Run, combined: CombinedMapSolver, curve_energy: CurveMapSo
 
 def recorded_maps(args) -> tuple[str, ...]:
     """With ``--default-only`` the default and the 50 x 50 map (what the size switch replaced): a third of the
-    conversions; and each ``--grow`` candidate."""
-    return (("default", "prior_size") if args.default_only else MAPS) + tuple(f"grow_{c}" for c in args.grow)
-
-
-def grown_sizes(solver: CombinedMapSolver, candidates: list[str]) -> dict[str, int]:
-    sizes = {}
-    for candidate in candidates:
-        solver.size_growth = float(candidate.split(":")[0])
-        sizes[candidate] = solver.map_size
-    solver.size_growth = None
-    return sizes
+    conversions."""
+    return ("default", "prior_size") if args.default_only else MAPS
 
 
 def size_errors(run: Run, combined: CombinedMapSolver, curves: Curves) -> dict:
@@ -216,8 +193,6 @@ def run_clicks(run: Run, count: int, args) -> dict:
     out["errors"] = {m: [c[m] for c in clicks] for m in recorded_maps(args)}
     if args.figures:
         out["figures"] = [{key: value for key, value in c.items() if key not in MAPS} for c in clicks]
-    if args.grow:
-        out["grown_sizes"] = [c["grown_size"] for c in clicks]
     print(json.dumps(out), file=sys.stderr, flush=True)  # a stopped benchmark keeps the runs it finished
     return out
 
@@ -261,14 +236,6 @@ def main() -> None:
     parser.add_argument("--max-vertices", type=int, default=20_000, help="skip pairs with a bigger mesh")
     parser.add_argument("--figures", action="store_true", help="record the intrinsic figures and sizes per click")
     parser.add_argument("--default-only", action="store_true", help="record the default and the 50 x 50 map only")
-    parser.add_argument(
-        "--grow",
-        nargs="*",
-        default=[],
-        metavar="GROWTH:WEIGHTS",
-        help="also score the map whose size grows with the curves' length (curvefm.fmap.combined.grown_size; "
-        "WEIGHTS interpolated or full)",
-    )
     add_pair_arguments(parser)
     parser.set_defaults(datasets=["faust", "cat-lion"])
     args = parser.parse_args()

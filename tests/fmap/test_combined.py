@@ -26,7 +26,6 @@ from curvefm.fmap.combined import (
     ONE_CURVE_PRIOR_FACTOR,
     PRIOR_DELAY_S,
     full_size_length,
-    grown_size,
     kernel_coefficients,
     kernel_filters,
     signature_coefficients,
@@ -137,15 +136,6 @@ def test_with_the_source_area_the_curves_length_decides_the_whole_map(shapes, pa
             assert solver.full_size == (count >= 2) and solver.commutativity_weight == (0.5 if count >= 2 else 3.0)
         summary = solver.effective().summary
         assert summary.startswith(f"combined; {K} x {K} from curves totalling {full_size_length(K):.1f} sqrt(area)")
-
-
-def test_a_grown_size_reaches_k_where_the_length_switch_does():
-    # the measured alternative to the switch (docs/experiments/map-size.md): pi L^2, kept between 50 and k
-    assert grown_size(0.0, 50, 120) == 50
-    assert grown_size(5.0, 50, 120) == round(np.pi * 25)
-    assert grown_size(full_size_length(120), 50, 120) == 120
-    assert grown_size(10.0, 50, 120) == 120
-    assert grown_size(3.0, 50, 120, growth=2.0) == round(2 * np.pi * 9)
 
 
 @pytest.mark.parametrize("count", [1, 2])

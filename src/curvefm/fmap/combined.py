@@ -113,19 +113,6 @@ def full_size_length(k: int) -> float:
     return float(np.sqrt(k / np.pi))
 
 
-SIZE_GROWTH: float | None = None
-"""A new solver's ``size_growth`` (None: the switch at :func:`full_size_length`); see :func:`grown_size`."""
-SIZE_WEIGHTS = "interpolated"
-"""A new solver's ``size_weights`` when its size grows."""
-
-
-def grown_size(length: float, smallest: int, k: int, growth: float = 1.0) -> int:
-    """A map size that grows with the curves' total ``length`` on the unit-area source instead of jumping:
-    ``growth * pi * length^2`` (the inverse of :func:`full_size_length`'s wavelength argument, so with ``growth`` 1
-    it reaches k where that switch hands out the whole map), kept between ``smallest`` and k."""
-    return int(np.clip(round(growth * np.pi * length**2), smallest, k))
-
-
 # chosen in docs/decisions.md#full-size-weights
 FULL_SIZE_ALPHA = 30.0
 FULL_SIZE_KERNEL_WEIGHT = 300.0
@@ -338,11 +325,6 @@ class CombinedMapSolver(CurveMapSolver):
         self._filters_M, self._filters_N = kernel_filters(self.basis_M.evals), kernel_filters(self.basis_N.evals)
         self._prior_executor, self.meshes = prior_executor, meshes
         self.side_curves = side_curves if meshes is not None else 0
-        self.size_growth: float | None = SIZE_GROWTH
-        """With the area: the map's size grows with the curves' length (:func:`grown_size`) instead of the switch, the
-        weights interpolated geometrically between the prior's and the full size's by the size reached
-        (``size_weights`` "interpolated") or the full size's once above the prior's (``"full"``)."""
-        self.size_weights = SIZE_WEIGHTS
         self._prior: tuple[PriorInputs, FunctionalMaps | None] | None = None  # (its inputs, NO17's maps, if any)
         self._prior_job: tuple[PriorInputs, Future[FunctionalMaps | object]] | None = None
         self._wanted = PriorInputs(frozenset())  # the inputs whose prior was last asked for
@@ -404,33 +386,13 @@ class CombinedMapSolver(CurveMapSolver):
         return len(self.curves) >= (self.full_size_curves or FULL_SIZE_CURVES)
 
     @property
-    def grows(self) -> bool:
-        """Whether the map's size grows with the curves' length (``size_growth``) rather than switching."""
-        return self.size_growth is not None and self.length_rule and self.prior_weight > 0
-
-    @property
-    def grown_fraction(self) -> float:
-        """How far the grown size is from the prior's block (0) to k (1)."""
-        if self.k <= self.prior_size:
-            return 1.0
-        return (self.map_size - self.prior_size) / (self.k - self.prior_size)
-
-    def _now(self, prior_sized: float, whole: float) -> float:
-        if not self.grows:
-            return whole if self.full_size else prior_sized
-        t = self.grown_fraction
-        if self.size_weights == "full":
-            return whole if t > 0 else prior_sized
-        return float(prior_sized ** (1 - t) * whole**t)
-
-    @property
     def commutativity_weight(self) -> float:
-        return self._now(self.alpha, self.full_size_alpha)
+        return self.full_size_alpha if self.full_size else self.alpha
 
     @property
     def kernel_weight_now(self) -> float:
         """The kernel weight the maps are solved with now."""
-        return self._now(self.kernel_weight, self.full_size_kernel_weight)
+        return self.full_size_kernel_weight if self.full_size else self.kernel_weight
 
     def _weighted(self, mean_products: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         G_M, G_N, B = mean_products[:3] + self.kernel_weight_now * mean_products[3:] + self._signatures
@@ -580,20 +542,17 @@ class CombinedMapSolver(CurveMapSolver):
     def map_size(self) -> int:
         """The size the maps are handed out at: the prior's block until the curves determine the whole map
         (:attr:`full_size`), then k."""
-        if self.grows:
-            return grown_size(self.curves_length, self.prior_size, self.k, cast("float", self.size_growth))
         return self.prior_size if self.prior_weight > 0 and not self.full_size else self.k
 
     @property
     def damped(self) -> bool:
         """Whether the frequencies beyond the prior's block are scaled by ``HIGH_FREQUENCY_DAMPING`` now."""
-        beyond = self.map_size > self.prior_size if self.grows else self.full_size
-        return self.prior_weight > 0 and beyond and self.damps_high_frequencies
+        return self.prior_weight > 0 and self.full_size and self.damps_high_frequencies
 
     def _sized(self, C: np.ndarray) -> np.ndarray:
-        size, handed = self.prior_size, self.map_size
-        if handed < self.k:
-            C = C[:handed, :handed].copy()
+        size = self.prior_size
+        if self.map_size < self.k:
+            return C[:size, :size].copy()
         if not self.damped:
             return C
         damped = C * HIGH_FREQUENCY_DAMPING
