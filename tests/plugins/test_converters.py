@@ -20,6 +20,7 @@ from curvefm.evaluation import evaluate_map, ground_truth_curves, ground_truth_f
 from curvefm.fmap import DEFAULT_ALPHA, DEFAULT_K, DEFAULT_SAMPLES, FunctionalMaps
 from curvefm.geometry import load_mesh
 from curvefm.matching import MatchResult, convert, match
+from curvefm.plugins import converters
 from curvefm.plugins.rhm import (
     ANCHOR_RADIUS,
     ENERGY_WINDOW,
@@ -110,6 +111,25 @@ def test_the_automatic_embedding_keeps_the_candidate_that_stretches_edges_least(
         stretch[embedding] = edge_stretch(mesh_M, mesh_N, maps.p2p_MN)
     assert stretch["auto"] == min(stretch["both"], stretch["single"])
     assert errors["auto"] <= min(0.038, 0.75 * errors["both"]), errors  # 0.038: issue 13's target
+
+
+def test_big_meshes_get_the_orthogonal_steps_on_area_samples(faust, monkeypatch):
+    """Where the conversion's search is approximate (big meshes; forced here on FAUST) the map is stepped as on small
+    meshes, the steps iterated on area-drawn samples of each shape (fewer than FAUST's vertices here) and every
+    vertex matched once at the end (issue 37): better than the unstepped conversion big meshes got before, and
+    close to the steps on every vertex."""
+    on_every_vertex = refined_error(faust, "nearest-neighbor", {})
+    stepped = []
+    monkeypatch.setattr(converters, "uses_approximate", lambda rows, queries: True)
+    monkeypatch.setattr(converters, "STEP_SAMPLES", 5000)
+    steps = converters.sampled_orthogonal_steps
+    monkeypatch.setattr(converters, "sampled_orthogonal_steps", lambda *args: stepped.append(args) or steps(*args))
+    unstepped = refined_error(faust, "nearest-neighbor", {"orthogonal_steps": 0})
+    assert not stepped
+    on_samples = refined_error(faust, "nearest-neighbor", {})
+    assert len(stepped) == 2 and all(len(args[1].ids) == 5000 for args in stepped)
+    assert on_samples < unstepped, (on_samples, unstepped)
+    assert on_samples <= 1.05 * on_every_vertex, (on_samples, on_every_vertex)
 
 
 @pytest.mark.parametrize("converter, params", [("icp", {}), ("zoomout", {"samples": 2000}), ("rhm", SHORT_RHM)])

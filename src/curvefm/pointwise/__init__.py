@@ -15,6 +15,7 @@ from curvefm.pointwise.conversion import (
     pointwise_from_both,
     pointwise_from_fmap,
     room_for_steps,
+    stepped_size,
 )
 from curvefm.pointwise.curve_pins import CurvePins, no_pins
 from curvefm.pointwise.geodesic_mds import (
@@ -32,10 +33,13 @@ from curvefm.pointwise.refinement import bases_with, initial_maps, unit_area
 from curvefm.pointwise.sampled import (
     AUTO_SAMPLES,
     DENSE_UP_TO,
+    STEP_SAMPLES,
     VertexRows,
+    area_samples,
     fit_fmap,
     match_rows,
     refinement_samples,
+    sampled_orthogonal_steps,
 )
 from curvefm.pointwise.suggestion import SuggestedCurve, suggest_curve
 
@@ -43,12 +47,14 @@ __all__ = [
     "APPROXIMATE_FROM_PAIRS",
     "AUTO_SAMPLES",
     "DENSE_UP_TO",
+    "STEP_SAMPLES",
     "Search",
     "SuggestedCurve",
     "VertexRows",
     "CurvePins",
     "MapQuality",
     "PointwiseMaps",
+    "area_samples",
     "bases_with",
     "closest_points",
     "compare",
@@ -67,6 +73,8 @@ __all__ = [
     "pointwise_from_both",
     "pointwise_from_fmap",
     "refinement_samples",
+    "sampled_orthogonal_steps",
+    "stepped_size",
     "suggest_curve",
     "unit_area",
     "uses_approximate",

@@ -85,13 +85,19 @@ def orthogonal_steps(
     orthonormal columns (an isometry's, on unit-area bases) and match by nearest neighbours again. None where N's
     basis has no function beyond the map's: square steps drift (the curve energy's 120 x 120 map from 10 curves on
     FAUST 000 -> 011 went from 0.0276 to 0.0335)."""
-    k_image = min(k_N + ORTHOGONAL_EXTRA, basis_N.k)
+    k_image = stepped_size(k_N, basis_N)
     if k_image <= k_N:
         return p2p_NM
     for _ in range(steps):
         C = nearest_orthogonal(fmap_from_pointwise(p2p_NM, basis_M, basis_N, k_M, k_image))
         p2p_NM = nearest_neighbors(basis_M.evecs[:, :k_M] @ C.T, basis_N.evecs[:, :k_image], search)
     return p2p_NM
+
+
+def stepped_size(k_N: int, basis_N: Basis) -> int:
+    """The image side's functions in :func:`orthogonal_steps`' maps: ``k_N`` and :data:`ORTHOGONAL_EXTRA` more where
+    ``basis_N`` has them (no more than ``k_N``: no steps)."""
+    return min(k_N + ORTHOGONAL_EXTRA, basis_N.k)
 
 
 def room_for_steps(C_forward: np.ndarray, C_back: np.ndarray, basis_from: Basis) -> tuple[np.ndarray, np.ndarray]:
