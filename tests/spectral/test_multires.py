@@ -52,3 +52,18 @@ def test_blocks_do_not_change_the_basis(subdivided, monkeypatch):
     blocked = multires_eigenpairs(L, mass, vertices, faces, 20, coarse_vertices=1500, refine_steps=2)
     np.testing.assert_allclose(blocked[0], whole[0], rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(np.abs(blocked[1]), np.abs(whole[1]), atol=1e-7)
+
+
+def test_rayleigh_ritz_leaves_out_a_direction_that_shift_invert_made_dependent(subdivided):
+    """Two columns parallel to rounding (shift-invert can do that) made the projected mass matrix indefinite and
+    the generalised eigensolver fail; the dependent direction is left out and the Ritz pairs stay those of the span."""
+    vertices, faces, L, mass = subdivided
+    _, evecs = smallest_eigenpairs(L, mass, 12, workers=1)
+    distinct = evecs[:, :10].copy()
+    doubled = np.hstack([distinct[:, :2], distinct[:, 1:2] * (1 + 1e-15), distinct[:, 2:]])
+    evals, rotation = multires._rayleigh_ritz(L, mass, doubled)
+    expected, _ = multires._rayleigh_ritz(L, mass, distinct)
+    assert rotation.shape == (11, 10)
+    np.testing.assert_allclose(evals, expected, rtol=1e-8, atol=1e-10)
+    ritz = doubled @ rotation
+    np.testing.assert_allclose(ritz.T @ (mass[:, None] * ritz), np.eye(10), atol=1e-8)

@@ -18,11 +18,10 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-import scipy.linalg as sla
 import scipy.sparse as sp
 
 from curvefm.geometry import closest_point_weights, fast_decimate
-from curvefm.spectral.eigensolver import SIGMA, shifted_factor, smallest_eigenpairs
+from curvefm.spectral.eigensolver import SIGMA, EigenError, shifted_factor, smallest_eigenpairs
 
 # chosen in docs/decisions.md#eigensolver
 COARSE_VERTICES = 8_000
@@ -31,6 +30,7 @@ REFINE_STEPS = 1  # 110k vertices: eigenvalue error 1.3e-4 after one step, 3.5e-
 # Scans of millions of vertices: the full-size work is done in blocks, so one n x (k + extra) array is the only
 # large one besides the result (1.76M vertices, k = 120: 2.3 GB and 1.7 GB; whole-array temporaries were 4 more)
 SOLVE_COLUMNS = 20
+DEPENDENT_BELOW = 1e-10  # a direction of the refined subspace whose mass Gram eigenvalue is below this (relative)
 ROW_BLOCK = 1 << 16
 
 
@@ -61,6 +61,8 @@ def multires_eigenpairs(
     _solve_in_place(factor.solve, mass, x)
     del factor  # as big as x at scan size: gone before the result is made
     evals, rotation = _rayleigh_ritz(L, mass, x)
+    if len(evals) < k:
+        raise EigenError(f"the refined subspace holds {len(evals)} independent functions, fewer than k = {k}")
     return evals[:k], _rotated(x, rotation[:, :k])
 
 
@@ -83,14 +85,20 @@ def _solve_in_place(solve: Callable[[np.ndarray], np.ndarray], mass: np.ndarray,
 def _rayleigh_ritz(L: sp.csr_matrix, mass: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Ritz values (ascending) and the rotation ``y`` that makes ``x @ y`` the mass-orthonormal Ritz vectors of
     ``L phi = lambda A phi`` on span(x); scales x's columns to unit mass norm in place (shift-invert scales them
-    apart)."""
+    apart). Directions of x that are dependent to rounding are left out, so ``y`` may have fewer columns than x."""
     x /= np.sqrt(np.einsum("ij,i,ij->j", x, mass, x))
     m = x.shape[1]
     projected_mass, projected_L = np.zeros((m, m)), np.zeros((m, m))
     for rows in _row_blocks(len(x)):
         projected_mass += x[rows].T @ (mass[rows, None] * x[rows])
         projected_L += x[rows].T @ (L[rows] @ x)
-    return sla.eigh((projected_L + projected_L.T) / 2, (projected_mass + projected_mass.T) / 2)
+    # Not a generalised eigh with the projected mass: shift-invert can turn two columns (nearly) parallel, and
+    # then that Gram matrix is not positive definite to rounding (it failed once at 110k vertices)
+    w, u = np.linalg.eigh((projected_mass + projected_mass.T) / 2)
+    independent = w > DEPENDENT_BELOW * w[-1]
+    orthonormal = u[:, independent] / np.sqrt(w[independent])
+    evals, y = np.linalg.eigh(orthonormal.T @ ((projected_L + projected_L.T) / 2) @ orthonormal)
+    return evals, orthonormal @ y
 
 
 def _rotated(x: np.ndarray, rotation: np.ndarray) -> np.ndarray:
