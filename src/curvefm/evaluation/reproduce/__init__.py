@@ -55,7 +55,7 @@ def reproduce(
     data, chosen, store = shared_data_dir(), SUITES[suite], store or Store()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    started = time.perf_counter()
+    started, load = time.perf_counter(), os.getloadavg()[0]
     results: dict[str, Any] = {}
     figures: dict[str, Path] = {}
     if "accuracy" in experiments:
@@ -74,6 +74,7 @@ def reproduce(
         "date": date.today().isoformat(),
         "machine": machine(),
         "seconds": time.perf_counter() - started,
+        "load": [load, os.getloadavg()[0]],
         "json": str(out / "results.json"),
     }
     _write_json(out / "results.json", {"meta": results["meta"], "claims": results["claims"]})
