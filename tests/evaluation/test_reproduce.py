@@ -125,7 +125,7 @@ def test_plots_and_a_report_with_every_claim(run):
     assert report.count("Target -> source, endpoints chosen on the target:") == 2
     assert "## Which method wins: target -> source, endpoints chosen on the target" in report
     assert "## Both maps of every run" in report and "pointwise maps `curvefm match` hands out" in report
-    assert "Suite `ci` is a subset of the full suite" in report
+    assert "This run is a subset of the full suite: 2 of its 12 pairs" in report
     claims = load(results, "results.json")["claims"]
     expected = expected_verdicts(load(results, "accuracy.json")["summary"], load(results, "timing.json"))
     assert len(claims) == len(expected) == 8
@@ -185,6 +185,8 @@ def test_bad_requests_are_named(tmp_path, monkeypatch):
         reproduce(tmp_path, suite="huge")
     with pytest.raises(CurvefmError, match="unknown experiment"):
         reproduce(tmp_path, experiments=("speed",))
+    with pytest.raises(CurvefmError, match="at least one seed is needed, not 0"):
+        reproduce(tmp_path, suite="ci", seeds=0)
     env = os.environ | {"CURVEFM_SHARED_DATA": str(tmp_path / "nowhere")}
     done = subprocess.run(
         [sys.executable, "-m", "curvefm.cli", "reproduce", "--out", str(tmp_path / "r")],
