@@ -35,6 +35,8 @@ from curvefm.progress import Progress, no_progress
 from curvefm.store import Store
 
 EXPERIMENTS = ("accuracy", "timing")
+THREAD_SETTINGS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "CURVEFM_SEARCH_THREADS")
+"""Environment variables that change the timings (not the errors): the report names those a run was given."""
 
 
 def reproduce(
@@ -83,6 +85,7 @@ def reproduce(
         "machine": machine(),
         "seconds": time.perf_counter() - started,
         "load": [load, os.getloadavg()[0]],
+        "environment": {name: os.environ[name] for name in THREAD_SETTINGS if name in os.environ},
         "json": str(out / "results.json"),
     }
     _write_json(out / "results.json", {"meta": results["meta"], "claims": results["claims"]})

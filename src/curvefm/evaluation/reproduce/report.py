@@ -266,7 +266,8 @@ def _load(meta: dict[str, Any]) -> str:
     if "load" not in meta:
         return ""
     start, end = meta["load"]
-    return f", load average {start:.1f} at the start and {end:.1f} at the end"
+    settings = "".join(f", {name}={value}" for name, value in meta.get("environment", {}).items())
+    return f", load average {start:.1f} at the start and {end:.1f} at the end{settings}"
 
 
 def _seeds(meta: dict[str, Any]) -> int:
