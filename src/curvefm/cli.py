@@ -662,7 +662,7 @@ def parser() -> argparse.ArgumentParser:
         "--suite",
         default="full",
         help="'full' (12 pairs: about 2,400 conversions to the handed-out pointwise maps, hours) or 'ci' (two pairs, "
-        "168 conversions: about 50 min on a loaded 2-core machine)",
+        "168 conversions: 30-50 min on a loaded 2-core machine, estimated)",
     )
     r.add_argument(
         "--seeds",

@@ -31,7 +31,7 @@ def run(shared_data, tmp_path_factory):
         "--data",
         str(out / "store"),
     ]
-    # 168 runs' maps converted as `curvefm match` hands them out (about 5 CPU s each): 50 min on a loaded machine
+    # 168 runs' maps converted as `curvefm match` hands them out (about 5 CPU s each): 30-50 min loaded
     done = subprocess.run(command, capture_output=True, text=True, timeout=7200)
     assert done.returncode == 0, done.stderr[-3000:]
     return out / "results"
