@@ -14,12 +14,16 @@ from curvefm.evaluation import (
     ground_truth_for,
     map_geodesic_errors,
     reversed_truth,
+    score_maps,
     truth_to_score,
 )
+from curvefm.evaluation.protocol import held_out_landmarks, rows_to_score
 from curvefm.evaluation.reproduce.datasets import Pair
 from curvefm.evaluation.reproduce.scoring import DIRECTIONS, LoadedPair
 from curvefm.fmap import Hints
 from curvefm.geometry import load_mesh, shortest_path
+from curvefm.matching import handed_out
+from curvefm.pointwise import PointwiseMaps
 from curvefm.progress import no_progress
 from curvefm.store import Store
 
@@ -89,21 +93,78 @@ def test_evaluate_scores_both_maps_from_endpoints_on_either_side(shared_data, tm
     assert reports["source"]["errors"] != reports["target"]["errors"]
 
 
-def test_reproduce_scores_each_side_in_its_direction_away_from_the_curves(shared_data, tmp_path):
-    loaded = LoadedPair.load(shared_data, FAUST, 20, Store(tmp_path))
+@pytest.fixture(scope="module")
+def loaded(shared_data, tmp_path_factory):
+    return LoadedPair.load(shared_data, FAUST, 20, Store(tmp_path_factory.mktemp("store")))
+
+
+def sampled_curves(loaded: LoadedPair, side: str) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Two curves whose endpoints are among the sampled rows, chosen on ``side``; as ``(path_M, path_N)``."""
     M, N, truth = loaded.shapes.mesh_M, loaded.shapes.mesh_N, loaded.truth
+    mesh_from, mesh_to, rows = (M, N, truth) if side == "source" else (N, M, reversed_truth(truth))
+    partner = dict(zip(rows.ids_X.tolist(), rows.ids_Y.tolist(), strict=True))
+    ends = rows.ids_X[loaded.rows[[3, 50, 400, 900]]].tolist()
+    paths = [
+        (shortest_path(mesh_from.edge_graph, x, y), shortest_path(mesh_to.edge_graph, partner[x], partner[y]))
+        for x, y in (ends[:2], ends[2:])
+    ]
+    return paths if side == "source" else [(path_M, path_N) for path_N, path_M in paths]
+
+
+@pytest.mark.parametrize("side", ENDPOINT_SIDES)
+def test_reproduce_scores_both_maps_away_from_the_user_points(loaded, side):
+    truth = loaded.truth
+    assert np.array_equal(truth.ids_X, np.arange(loaded.shapes.mesh_M.n_vertices))  # FAUST: identity
+    curves = sampled_curves(loaded, side)
+    given_M, given_N = ends(curves, 0), ends(curves, 1)
+    # both maps right everywhere except at the points the user gave, where they are far off
+    far_N, far_M = (
+        int(np.argmax(np.linalg.norm(m.vertices - m.vertices[0], axis=1))) for m in loaded.shapes.meshes[::-1]
+    )
+    p2p_MN, p2p_NM = truth.ids_Y.copy(), truth.ids_X.copy()
+    p2p_MN[given_M], p2p_NM[given_N] = far_N, far_M
+    scored = loaded.score_pointwise(PointwiseMaps(p2p_NM=p2p_NM, p2p_MN=p2p_MN), side, 0, curves)
+    assert set(scored) == set(DIRECTIONS.values())
+    for errors in scored.values():
+        assert errors.count == len(loaded.rows) - 4 == 996 and errors.mean == 0
+    # scored at the user's points (no curves given), the same maps show their errors there, in each direction
+    everywhere = loaded.score_pointwise(PointwiseMaps(p2p_NM=p2p_NM, p2p_MN=p2p_MN), side, 0, [])
+    assert all(e.count == 1000 and e.mean > 0 for e in everywhere.values())
+    # each direction scores its own map: spoil only the map target -> source away from the curves
+    p2p_NM = np.roll(p2p_NM, 1)
+    scored = loaded.score_pointwise(PointwiseMaps(p2p_NM=p2p_NM, p2p_MN=p2p_MN), side, 0, curves)
+    assert scored["source_to_target"].mean == 0 and scored["target_to_source"].mean > 0
+
+
+def test_reproduce_scores_the_maps_curvefm_match_hands_out(loaded):
+    """The reproduce scorer's look-up gives what the product's scorer (``score_maps`` of ``handed_out``) gives at the
+    same rows, both directions, endpoints on either side."""
     plugin, params = registry.load("method", "curves", None)
-    maps = plugin.run(loaded.shapes, Hints.from_curves(loaded.pool.curves(5, 0, exact=False)), params, no_progress)
-    for side, scorer in loaded.scorers.items():
-        # two curves whose endpoints are among the sampled rows, on the side the rows start from
-        mesh_from, mesh_to, rows = (M, N, truth) if side == "source" else (N, M, reversed_truth(truth))
-        partner = dict(zip(rows.ids_X.tolist(), rows.ids_Y.tolist(), strict=True))
-        ends = scorer.rows_from[:4].tolist()
-        paths = [
-            (shortest_path(mesh_from.edge_graph, x, y), shortest_path(mesh_to.edge_graph, partner[x], partner[y]))
-            for x, y in (ends[:2], ends[2:])
-        ]
-        curves = paths if side == "source" else [(path_M, path_N) for path_N, path_M in paths]
-        assert loaded.score_side(maps, side, 0, []).count == len(scorer.rows_from) == 1000
-        away = loaded.score_side(maps, side, 0, curves)
-        assert away.count == 996 and 0 < away.mean_area < 0.3
+    sample = GroundTruth(loaded.truth.ids_X[loaded.rows], loaded.truth.ids_Y[loaded.rows], "identity", True)
+    for side in ENDPOINT_SIDES:
+        curves = loaded.pools[side].curves(5, 0, exact=False)
+        fmaps = plugin.run(loaded.shapes, Hints.from_curves(curves), params, no_progress)
+        ours = loaded.score_handed_out(fmaps, side, 0, curves)
+        product = score_maps(loaded.shapes, handed_out(loaded.shapes, fmaps), truth_to_score(sample, curves, 0, side))
+        for direction, errors in ours.items():
+            assert errors.count == product[direction]["count"]
+            assert errors.mean == pytest.approx(product[direction]["mean"], rel=1e-5)
+            assert 0 < errors.mean_area < 0.3
+        # handed out, not plain nearest neighbours in the embedding of one map: the figures differ
+        assert ours["source_to_target"].mean != loaded.score(fmaps.C_NM, 0, curves).mean
+
+
+@pytest.mark.parametrize("side", ENDPOINT_SIDES)
+def test_a_landmark_truth_is_scored_at_the_held_out_landmarks_that_are_not_endpoints(faust, side):
+    M, N, dense = faust
+    landmarks = np.random.default_rng(1).choice(len(dense), 30, replace=False)
+    truth = GroundTruth(dense.ids_X[landmarks], dense.ids_Y[landmarks], "landmarks", False)
+    curves = ground_truth_curves(M, N, truth, 3, endpoints_on=side)
+    keep = rows_to_score(truth, curves, 0, side)
+    scored = truth_to_score(truth, curves, 0, side)
+    assert np.array_equal(scored.ids_X, truth.ids_X[keep]) and np.array_equal(scored.ids_Y, truth.ids_Y[keep])
+    held = held_out_landmarks(truth if side == "source" else reversed_truth(truth), 0)
+    on_side = truth.ids_X if side == "source" else truth.ids_Y
+    assert 0 < keep.sum() <= len(held) and set(on_side[keep].tolist()) <= set(held.tolist())
+    assert not set(truth.ids_X[keep].tolist()) & set(ends(curves, 0))
+    assert not set(truth.ids_Y[keep].tolist()) & set(ends(curves, 1))

@@ -4,13 +4,14 @@ import json
 import os
 import subprocess
 import sys
+from collections import defaultdict
 from itertools import pairwise
 
 import pytest
 
 from curvefm.errors import CurvefmError
 from curvefm.evaluation.reproduce import reproduce
-from curvefm.evaluation.reproduce.accuracy import VARIANTS
+from curvefm.evaluation.reproduce.accuracy import SUMMARIES, VARIANTS
 from curvefm.evaluation.reproduce.datasets import DATASETS, NON_ISOMETRIC
 from curvefm.evaluation.reproduce.report import INTERACTIVE_MS, NEAR_EXACT, SAME_INPUTS
 
@@ -25,12 +26,15 @@ def run(shared_data, tmp_path_factory):
         "reproduce",
         "--suite",
         "ci",
+        "--seeds",
+        "1",
         "--out",
         str(out / "results"),
         "--data",
         str(out / "store"),
     ]
-    done = subprocess.run(command, capture_output=True, text=True, timeout=1800)  # both directions: twice the runs
+    # one curve draw of the two: 84 runs' maps converted as `curvefm match` hands them out (about 5 CPU s each)
+    done = subprocess.run(command, capture_output=True, text=True, timeout=7200)
     assert done.returncode == 0, done.stderr[-3000:]
     return out / "results"
 
@@ -39,31 +43,57 @@ def load(results, name):
     return json.loads((results / name).read_text())
 
 
-def test_every_method_variant_count_and_seed_is_recorded(run):
+def test_every_method_variant_count_seed_side_and_direction_is_recorded(run):
     accuracy = load(run, "accuracy.json")
-    summaries = (accuracy["summary"], accuracy["summary_target_to_source"])
+    summaries = [accuracy[key] for key in SUMMARIES]
     assert all(set(summary) == {"faust", "cat-lion"} for summary in summaries)
     expected = {
-        (p, v.key, c, s, d)
+        (p, v.key, c, s, side, d)
         for p in ("tr_reg_000->tr_reg_011", "cat-00->lion-00")
         for v in VARIANTS
         for c in (1, 5, 20)
-        for s in (0, 1)
+        for s in (0,)
+        for side in ("source", "target")
         for d in ("source_to_target", "target_to_source")
     }
-    recorded = {(r["pair"], r["variant"], r["count"], r["seed"], r["direction"]) for r in accuracy["records"]}
-    assert recorded == expected
+    recorded = {
+        (r["pair"], r["variant"], r["count"], r["seed"], r["endpoints_on"], r["direction"]) for r in accuracy["records"]
+    }
+    assert recorded == expected and len(accuracy["records"]) == len(expected)
     for record in accuracy["records"]:
         assert "failed" not in record, record
         assert 0 <= record["mean"] < 1 and record["mean_area"] > 0 and 0 < record["auc"] <= 1
+        # dense truth: at most the 1000 sampled rows, less those at a curve's end
+        assert 0 < record["scored"] <= 1000 and record["convert_seconds"] > 0
     for summary in summaries:
         for by_variant in summary.values():
             for by_count in by_variant.values():
                 for cell in by_count.values():
-                    assert cell["runs"] == 2 and len(cell["curve"]) == 51 and cell["curve"] == sorted(cell["curve"])
-    # the two directions are separate runs (their own curves), not one map read twice
-    means = {(r["pair"], r["variant"], r["count"], r["seed"], r["direction"]): r["mean"] for r in accuracy["records"]}
-    assert any(means[key[:4] + ("source_to_target",)] != means[key[:4] + ("target_to_source",)] for key in means)
+                    assert cell["runs"] == 1 and len(cell["curve"]) == 51 and cell["curve"] == sorted(cell["curve"])
+    runs = defaultdict(dict)
+    for r in accuracy["records"]:
+        runs[(r["pair"], r["variant"], r["count"], r["seed"], r["endpoints_on"])][r["direction"]] = r
+    # both maps of a run are scored, each on its own shape: their figures differ
+    assert any(both["source_to_target"]["mean"] != both["target_to_source"]["mean"] for both in runs.values())
+    # and the two sides are separate runs (their own curves), not one map read twice
+    for both in runs.values():  # one solve and one conversion give both maps, scored at the same rows
+        assert both["source_to_target"]["seconds"] == both["target_to_source"]["seconds"]
+        assert both["source_to_target"]["scored"] == both["target_to_source"]["scored"]
+    assert any(
+        both["source_to_target"]["mean"] != runs[key[:4] + ("target",)]["source_to_target"]["mean"]
+        for key, both in runs.items()
+        if key[4] == "source"
+    )
+
+
+def test_the_curves_ends_are_not_scored(run):
+    """With 20 curves a run ends at up to 40 of the pool's 40 candidates; some fall among the 1000 sampled rows and are
+    dropped, on either side: had the ends been scored, every run would score all 1000."""
+    records = load(run, "accuracy.json")["records"]
+    for side in ("source", "target"):
+        for pair in ("tr_reg_000->tr_reg_011", "cat-00->lion-00"):
+            scored = [r["scored"] for r in records if (r["endpoints_on"], r["pair"], r["count"]) == (side, pair, 20)]
+            assert min(scored) < 1000, (side, pair)
 
 
 def test_more_curves_give_lower_error_and_traced_curves_stay_close_to_exact(run):
@@ -96,6 +126,8 @@ def test_plots_and_a_report_with_every_claim(run):
     assert "![faust](accuracy_faust.png)" in report and "![timing](timing.png)" in report
     assert report.count("Target -> source, endpoints chosen on the target:") == 2
     assert "## Which method wins: target -> source, endpoints chosen on the target" in report
+    assert "## Both maps of every run" in report and "pointwise maps `curvefm match` hands out" in report
+    assert "This run is a subset of the full suite: 2 of its 12 pairs" in report
     claims = load(results, "results.json")["claims"]
     expected = expected_verdicts(load(results, "accuracy.json")["summary"], load(results, "timing.json"))
     assert len(claims) == len(expected) == 8
@@ -155,6 +187,8 @@ def test_bad_requests_are_named(tmp_path, monkeypatch):
         reproduce(tmp_path, suite="huge")
     with pytest.raises(CurvefmError, match="unknown experiment"):
         reproduce(tmp_path, experiments=("speed",))
+    with pytest.raises(CurvefmError, match="at least one seed is needed, not 0"):
+        reproduce(tmp_path, suite="ci", seeds=0)
     env = os.environ | {"CURVEFM_SHARED_DATA": str(tmp_path / "nowhere")}
     done = subprocess.run(
         [sys.executable, "-m", "curvefm.cli", "reproduce", "--out", str(tmp_path / "r")],

@@ -107,11 +107,20 @@ def held_out_landmarks(truth: GroundTruth, seed: int) -> np.ndarray:
 def scored_truth(truth: GroundTruth, seed: int, endpoints_on: str = "source") -> GroundTruth:
     """The rows a map solved from the curves of ``seed`` (endpoints chosen on ``endpoints_on``) may be scored on: all
     of a dense truth, the :func:`held_out_landmarks` of a sparse one."""
+    return subset(truth, held_out_rows(truth, seed, endpoints_on))
+
+
+def held_out_rows(truth: GroundTruth, seed: int, endpoints_on: str = "source") -> np.ndarray:
+    """A mask over ``truth``'s rows: those of :func:`scored_truth`."""
     if truth.dense:
-        return truth
+        return np.ones(len(truth), dtype=bool)
     if checked_side(endpoints_on) == "target":
-        return reversed_truth(scored_truth(reversed_truth(truth), seed))
-    rows = np.isin(truth.ids_X, held_out_landmarks(truth, seed))
+        return np.isin(truth.ids_Y, held_out_landmarks(reversed_truth(truth), seed))
+    return np.isin(truth.ids_X, held_out_landmarks(truth, seed))
+
+
+def subset(truth: GroundTruth, rows: np.ndarray) -> GroundTruth:
+    """The rows of ``truth`` that the mask ``rows`` selects."""
     return GroundTruth(truth.ids_X[rows], truth.ids_Y[rows], truth.kind, truth.dense)
 
 
@@ -121,18 +130,28 @@ def curve_ends(curves: Curves) -> tuple[np.ndarray, np.ndarray]:
     return ends[:, 0].ravel(), ends[:, 1].ravel()
 
 
+def rows_away_from_ends(truth: GroundTruth, curves: Curves) -> np.ndarray:
+    """A mask over ``truth``'s rows: those of :func:`truth_away_from_ends`."""
+    ends_M, ends_N = curve_ends(curves)
+    return ~np.isin(truth.ids_X, ends_M) & ~np.isin(truth.ids_Y, ends_N)
+
+
 def truth_away_from_ends(truth: GroundTruth, curves: Curves) -> GroundTruth:
     """The ground-truth rows at neither end of any curve (on either shape): the points the user gave, which the
     refiners pin, say nothing about the map."""
-    ends_M, ends_N = curve_ends(curves)
-    keep = ~np.isin(truth.ids_X, ends_M) & ~np.isin(truth.ids_Y, ends_N)
-    return GroundTruth(truth.ids_X[keep], truth.ids_Y[keep], truth.kind, truth.dense)
+    return subset(truth, rows_away_from_ends(truth, curves))
+
+
+def rows_to_score(truth: GroundTruth, curves: Curves, seed: int = 0, endpoints_on: str = "source") -> np.ndarray:
+    """A mask over ``truth``'s rows: those of :func:`truth_to_score`, for scorers that look distances up by row
+    (``curvefm reproduce``'s)."""
+    return held_out_rows(truth, seed, endpoints_on) & rows_away_from_ends(truth, curves)
 
 
 def truth_to_score(truth: GroundTruth, curves: Curves, seed: int = 0, endpoints_on: str = "source") -> GroundTruth:
     """The rows a map solved from ``curves`` (drawn for ``seed`` on the ``endpoints_on`` side) is scored on:
     :func:`scored_truth` without the curves' ends (:func:`truth_away_from_ends`)."""
-    return truth_away_from_ends(scored_truth(truth, seed, endpoints_on), curves)
+    return subset(truth, rows_to_score(truth, curves, seed, endpoints_on))
 
 
 def distinct_sources(truth: GroundTruth) -> np.ndarray:

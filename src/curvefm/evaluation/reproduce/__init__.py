@@ -8,7 +8,8 @@ that states for each of the paper's claims whether it holds on our data:
 * ``timing`` (:mod:`curvefm.evaluation.reproduce.timing`): Figures 13/14, update time of our solver, the paper's CG and
   L-BFGS, and time and accuracy against the basis size.
 
-Suites (:mod:`curvefm.evaluation.reproduce.datasets`): ``full`` (12 pairs, 1-20 curves, 3 seeds) and ``ci`` (2 pairs).
+Suites (:mod:`curvefm.evaluation.reproduce.datasets`): ``full`` (12 pairs, 1-20 curves, 3 seeds) and ``ci`` (2 pairs);
+``seeds`` draws fewer (or more) curve subsets per pair and count than the suite does.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import os
 import platform
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from datetime import date
 from pathlib import Path
 from typing import Any
@@ -33,6 +35,8 @@ from curvefm.progress import Progress, no_progress
 from curvefm.store import Store
 
 EXPERIMENTS = ("accuracy", "timing")
+THREAD_SETTINGS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "CURVEFM_SEARCH_THREADS")
+"""Environment variables that change the timings (not the errors): the report names those a run was given."""
 
 
 def reproduce(
@@ -43,19 +47,24 @@ def reproduce(
     report: str | Path | None = None,
     command: str = "curvefm reproduce",
     progress_for: Callable[[str], Progress] = lambda name: no_progress,
+    seeds: int | None = None,
 ) -> dict[str, Any]:
     """Run the experiments, write ``accuracy.json``, ``timing.json``, the plots and the report
-    (``report`` or ``OUT/results.md``); return everything as one dict."""
+    (``report`` or ``OUT/results.md``); return everything as one dict. ``seeds``: curve draws per pair and count,
+    else the suite's."""
     if suite not in SUITES:
         raise InvalidInput(f"unknown suite '{suite}'; suites are {', '.join(SUITES)}")
     unknown = [e for e in experiments if e not in EXPERIMENTS]
     if unknown or not experiments:
         raise InvalidInput(f"unknown experiment {unknown or experiments!r}; experiments are {', '.join(EXPERIMENTS)}")
     require_matplotlib()
-    data, chosen, store = shared_data_dir(), SUITES[suite], store or Store()
+    if seeds is not None and seeds < 1:
+        raise InvalidInput(f"at least one seed is needed, not {seeds}")
+    chosen = SUITES[suite] if seeds is None else replace(SUITES[suite], seeds=seeds)
+    data, store = shared_data_dir(), store or Store()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    started = time.perf_counter()
+    started, load = time.perf_counter(), os.getloadavg()[0]
     results: dict[str, Any] = {}
     figures: dict[str, Path] = {}
     if "accuracy" in experiments:
@@ -71,9 +80,12 @@ def reproduce(
     results["meta"] = {
         "command": command,
         "suite": suite,
+        "seeds": chosen.seeds,
         "date": date.today().isoformat(),
         "machine": machine(),
         "seconds": time.perf_counter() - started,
+        "load": [load, os.getloadavg()[0]],
+        "environment": {name: os.environ[name] for name in THREAD_SETTINGS if name in os.environ},
         "json": str(out / "results.json"),
     }
     _write_json(out / "results.json", {"meta": results["meta"], "claims": results["claims"]})

@@ -2,9 +2,12 @@
 descriptor baselines given the same information (curve endpoints as landmarks, or curves as functions), and the
 combined energy (curves, wave kernel signatures and kernel maps along the curves, the default).
 
-Every run is made twice: with the endpoints chosen on the source, scored source -> target (``summary``, the paper's
-direction, which the claims and plots use), and with them chosen on the target, scored target -> source
-(``summary_target_to_source``)."""
+Every run is made twice, with the endpoints chosen on the source and with them chosen on the target, and each run's
+functional maps are converted to the pointwise maps ``curvefm match`` hands out
+(:meth:`~curvefm.evaluation.reproduce.scoring.LoadedPair.score_handed_out`), both of which are scored: a record per
+run and direction. :data:`SUMMARIES` names the four summaries; ``summary`` (endpoints on the source, the map source
+-> target: the paper's protocol, which the claims and plots use) and ``summary_target_to_source`` (endpoints on the
+target, the map target -> source: issue 35's protocol) are the report's main tables."""
 
 from __future__ import annotations
 
@@ -20,7 +23,7 @@ from curvefm import registry
 from curvefm.errors import CurvefmError
 from curvefm.evaluation.protocol import ENDPOINT_SIDES
 from curvefm.evaluation.reproduce.datasets import DATASETS, Suite
-from curvefm.evaluation.reproduce.scoring import DIRECTIONS, LoadedPair
+from curvefm.evaluation.reproduce.scoring import DIRECTIONS, MAX_ROWS, LoadedPair
 from curvefm.fmap import DEFAULT_K, Hints
 from curvefm.progress import Progress, no_progress
 from curvefm.store import Store
@@ -46,8 +49,18 @@ VARIANTS = (
 )
 
 
+SUMMARIES = {
+    "summary": ("source", "source_to_target"),
+    "summary_target_to_source": ("target", "target_to_source"),
+    "summary_source_ends_target_to_source": ("source", "target_to_source"),
+    "summary_target_ends_source_to_target": ("target", "source_to_target"),
+}
+"""Each summary of ``run_accuracy``'s answer: the side the endpoints are chosen on and the map scored."""
+
+
 def run_accuracy(data: Path, suite: Suite, store: Store, progress: Progress = no_progress) -> dict[str, Any]:
-    """Every variant on every pair, curve count, seed and direction; returns records and per-dataset summaries."""
+    """Every variant on every pair, curve count, seed and side the endpoints are chosen on, both maps scored; returns
+    records and per-dataset summaries (:data:`SUMMARIES`)."""
     records, skipped = [], []
     tasks = len(suite.pairs) * len(suite.counts) * suite.seeds
     done = 0
@@ -64,20 +77,15 @@ def run_accuracy(data: Path, suite: Suite, store: Store, progress: Progress = no
                     records.extend(run_task(loaded, count, seed, side))
                 done += 1
                 progress(done / tasks, f"{pair.name}: {count} curves, seed {seed}")
-    summaries = {direction: summarise(records, direction) for direction in DIRECTIONS.values()}
+    summaries = {key: summarise(records, *scored) for key, scored in SUMMARIES.items()}
     for record in records:  # the summary keeps the cumulative curves; the table keeps the figures per run
         record.pop("curve", None)
-    return {
-        "records": records,
-        "skipped": skipped,
-        "summary": summaries["source_to_target"],
-        "summary_target_to_source": summaries["target_to_source"],
-    }
+    return {"records": records, "skipped": skipped, "sampled_rows": MAX_ROWS} | summaries
 
 
 def run_task(loaded: LoadedPair, count: int, seed: int, side: str = "source") -> list[dict[str, Any]]:
-    """All variants for one random subset of ``count`` curves with endpoints on ``side``, scored in the direction
-    :data:`~curvefm.evaluation.reproduce.scoring.DIRECTIONS` gives it."""
+    """All variants for one random subset of ``count`` curves with endpoints on ``side``: a record per variant and
+    direction of the handed-out pointwise maps (both scored away from the curves' ends)."""
     kinds = (False, True) if loaded.truth.dense else (False,)
     curves = {exact: loaded.pools[side].curves(count, seed, exact) for exact in kinds}
     out = []
@@ -92,28 +100,34 @@ def run_task(loaded: LoadedPair, count: int, seed: int, side: str = "source") ->
             "variant": variant.key,
             "count": count,
             "seed": seed,
-            "direction": DIRECTIONS[side],
+            "endpoints_on": side,
         }
         start = time.perf_counter()
         try:
             maps = plugin.run(loaded.shapes, hints, params, no_progress)
+            seconds = time.perf_counter() - start
+            errors = loaded.score_handed_out(maps, side, seed, curves[variant.exact])
         except CurvefmError as exc:
-            out.append(record | {"failed": str(exc)})
+            out += [record | {"direction": direction, "failed": str(exc)} for direction in DIRECTIONS.values()]
             continue
-        record["seconds"] = time.perf_counter() - start
-        errors = loaded.score_side(maps, side, seed, curves[variant.exact])
-        out.append(
-            record | {"mean": errors.mean, "mean_area": errors.mean_area, "auc": errors.auc, "curve": errors.curve}
-        )
+        convert_seconds = time.perf_counter() - start - seconds
+        for direction, e in errors.items():
+            out.append(
+                record
+                | {"direction": direction, "seconds": seconds, "convert_seconds": convert_seconds, "scored": e.count}
+                | {"mean": e.mean, "mean_area": e.mean_area, "auc": e.auc, "curve": e.curve}
+            )
     return out
 
 
-def summarise(records: list[dict[str, Any]], direction: str = "source_to_target") -> dict[str, Any]:
-    """Per dataset, variant and curve count: means over pairs and seeds of the error figures and curves of the runs
-    scored in ``direction``."""
+def summarise(
+    records: list[dict[str, Any]], endpoints_on: str = "source", direction: str = "source_to_target"
+) -> dict[str, Any]:
+    """Per dataset, variant and curve count: means over pairs and seeds of the error figures and curves of the maps
+    in ``direction`` of the runs with endpoints on ``endpoints_on``."""
     groups = defaultdict(list)
     for r in records:
-        if "failed" not in r and r["direction"] == direction:
+        if "failed" not in r and (r["endpoints_on"], r["direction"]) == (endpoints_on, direction):
             groups[(r["dataset"], r["variant"], r["count"])].append(r)
     order = {v.key: i for i, v in enumerate(VARIANTS)}
     datasets = list(DATASETS)

@@ -1,12 +1,16 @@
-"""Loading a ground-truth pair once and scoring many functional maps on it cheaply, in both directions.
+"""Loading a ground-truth pair once and scoring many maps on it cheaply, in both directions.
 
 Scoring follows the Princeton protocol on a fixed, seeded sample of ground-truth rows (at most ``max_rows`` of a
 dense truth; of a sparse landmark truth, the landmarks the curves of a seed were not drawn from), never at a
-curve's end. Each direction has its own curves: ``source_to_target`` draws the endpoints on the source and maps each
-sampled source vertex to the target by nearest neighbours in the spectral embedding of ``C_NM`` (Ovsjanikov et al.
-2012, one map, as in the paper), the error measured on the target; ``target_to_source`` draws them on the target and
-maps target vertices to the source with ``C_MN``, the error measured on the source. The geodesic distance to each
-true partner is looked up in a table computed once per pair and direction.
+curve's end on either shape (:func:`~curvefm.evaluation.protocol.rows_to_score`, the rows
+:func:`~curvefm.evaluation.protocol.truth_to_score` keeps). The geodesic distance from each sampled row's true
+partner to every vertex is computed once per pair and direction, so scoring a map is a table look-up.
+
+:meth:`LoadedPair.score_handed_out` scores what ``curvefm match`` hands out: both pointwise maps of the default
+converter (:func:`curvefm.matching.handed_out`: nearest neighbours, then its orthogonal steps), source -> target
+measured on the target and target -> source on the source, whichever side the curves' endpoints were chosen on.
+:meth:`LoadedPair.score` and :meth:`LoadedPair.score_reverse` keep the older, cheaper score of the experiments
+under ``experiments/`` (plain nearest neighbours in the embedding of one functional map, one direction).
 """
 
 from __future__ import annotations
@@ -18,18 +22,20 @@ import numpy as np
 
 from curvefm.evaluation.ground_truth import GroundTruth, ground_truth_for
 from curvefm.evaluation.metrics import ErrorSummary
-from curvefm.evaluation.protocol import ENDPOINT_SIDES, CurvePool, Curves, curve_ends, reversed_truth
+from curvefm.evaluation.protocol import ENDPOINT_SIDES, CurvePool, Curves, reversed_truth, rows_to_score
 from curvefm.evaluation.reproduce.datasets import Pair
 from curvefm.fmap import FunctionalMaps
 from curvefm.geometry import Mesh, geodesic_diameter, geodesic_distances, load_mesh
-from curvefm.pointwise import pointwise_from_fmap
+from curvefm.matching import handed_out
+from curvefm.pointwise import PointwiseMaps, pointwise_from_fmap
 from curvefm.progress import Progress, no_progress, scaled
 from curvefm.spectral import Basis, ShapePair
 from curvefm.store import Store
 
 MAX_ROWS = 1000
 DIRECTIONS = {"source": "source_to_target", "target": "target_to_source"}
-"""The map each side's curves are scored on: endpoints chosen on the source score the map source -> target."""
+"""The direction read from each side: the map source -> target starts on the source. With endpoints chosen on a side,
+that side's map is the one the paper's protocol (source) and issue 35's (target) score; the report gives both maps."""
 
 
 @dataclass
@@ -38,7 +44,8 @@ class LoadedPair:
     shapes: ShapePair
     truth: GroundTruth
     pools: dict[str, CurvePool]  # by the side the endpoints are chosen on
-    scorers: dict[str, Scorer]  # likewise: the source's scores source -> target
+    scorers: dict[str, Scorer]  # by the side the map starts on: the source's scores source -> target
+    rows: np.ndarray  # the ground-truth rows both scorers sample (the same rows, read either way)
 
     @classmethod
     def load(cls, data: Path, pair: Pair, k: int, store: Store, progress: Progress = no_progress) -> LoadedPair:
@@ -47,10 +54,14 @@ class LoadedPair:
         basis_M = store.ensure_basis(mesh_M, k, progress=scaled(progress, 0.0, 0.4))
         basis_N = store.ensure_basis(mesh_N, k, progress=scaled(progress, 0.4, 0.7))
         progress(0.7, f"{pair.name}: geodesic distances for scoring")
-        scorers = {"source": Scorer.build(mesh_N, truth), "target": Scorer.build(mesh_M, reversed_truth(truth))}
+        rows = sampled_rows(truth)
+        scorers = {
+            "source": Scorer.build(mesh_N, truth, rows),
+            "target": Scorer.build(mesh_M, reversed_truth(truth), rows),
+        }
         pools = {side: CurvePool(mesh_M, mesh_N, truth, endpoints_on=side) for side in ENDPOINT_SIDES}
         progress(1.0, f"{pair.name}: ready")
-        return cls(pair, ShapePair(mesh_M, mesh_N, basis_M, basis_N), truth, pools, scorers)
+        return cls(pair, ShapePair(mesh_M, mesh_N, basis_M, basis_N), truth, pools, scorers, rows)
 
     @property
     def pool(self) -> CurvePool:
@@ -72,23 +83,37 @@ class LoadedPair:
         (``pools["target"]``)."""
         return self._score("target", C_MN, seed, curves)
 
-    def score_side(self, maps: FunctionalMaps, side: str, seed: int, curves: Curves) -> ErrorSummary:
-        """:meth:`score` or :meth:`score_reverse`, as ``side`` (where the endpoints were chosen) says."""
-        if side == "source":
-            return self.score(maps.C_NM, seed, curves)
-        return self.score_reverse(maps.C_MN, seed, curves)
+    def score_handed_out(
+        self, fmaps: FunctionalMaps, side: str, seed: int, curves: Curves, k: int | None = None
+    ) -> dict[str, ErrorSummary]:
+        """Errors of both pointwise maps ``curvefm match --k k`` hands out for ``fmaps`` (:func:`handed_out` on the
+        bases of ``k`` functions, all of the loaded ones by default), solved from ``curves`` drawn for ``seed`` with
+        endpoints on ``side``: ``{"source_to_target": ..., "target_to_source": ...}``."""
+        shapes = self.shapes if k is None else self.shapes.truncated(k)
+        return self.score_pointwise(handed_out(shapes, fmaps), side, seed, curves)
+
+    def score_pointwise(self, maps: PointwiseMaps, side: str, seed: int, curves: Curves) -> dict[str, ErrorSummary]:
+        """Errors of both pointwise ``maps`` at the sampled rows :func:`rows_to_score` keeps for ``curves`` drawn for
+        ``seed`` with endpoints on ``side``."""
+        keep = rows_to_score(self.truth, curves, seed, side)[self.rows]
+        return {
+            DIRECTIONS["source"]: self.scorers["source"].pointwise(maps.p2p_MN, keep),
+            DIRECTIONS["target"]: self.scorers["target"].pointwise(maps.p2p_NM, keep),
+        }
 
     def _score(self, side: str, C_to_from: np.ndarray, seed: int, curves: Curves) -> ErrorSummary:
-        """Errors at the sampled rows the curves did not use: not at a curve's end, and of a sparse truth only at the
-        seed's held-out landmarks (as :func:`~curvefm.evaluation.protocol.truth_to_score`)."""
-        scorer, held_out = self.scorers[side], self.pools[side].held_out(seed)
-        ends_M, ends_N = curve_ends(curves)
-        ends_from, ends_to = (ends_M, ends_N) if side == "source" else (ends_N, ends_M)
-        rows = ~np.isin(scorer.rows_from, ends_from) & ~np.isin(scorer.partners[scorer.columns], ends_to)
-        if len(held_out):
-            rows &= np.isin(scorer.rows_from, held_out)
+        """Errors of one map (plain nearest neighbours) at the sampled rows :func:`rows_to_score` keeps."""
+        keep = rows_to_score(self.truth, curves, seed, side)[self.rows]
         bases = (self.shapes.basis_M, self.shapes.basis_N)
-        return scorer(C_to_from, *(bases if side == "source" else bases[::-1]), rows)
+        return self.scorers[side](C_to_from, *(bases if side == "source" else bases[::-1]), keep)
+
+
+def sampled_rows(truth: GroundTruth, max_rows: int = MAX_ROWS, seed: int = 0) -> np.ndarray:
+    """At most ``max_rows`` ground-truth rows, seeded and sorted: all of a landmark truth, a sample of a dense one."""
+    rows = np.arange(len(truth))
+    if len(rows) > max_rows:
+        rows = np.sort(np.random.default_rng(seed).choice(rows, max_rows, replace=False))
+    return rows
 
 
 @dataclass
@@ -103,10 +128,11 @@ class Scorer:
     area: float
 
     @classmethod
-    def build(cls, mesh_Y: Mesh, truth: GroundTruth, max_rows: int = MAX_ROWS, seed: int = 0) -> Scorer:
-        rows = np.arange(len(truth))
-        if len(rows) > max_rows:
-            rows = np.sort(np.random.default_rng(seed).choice(rows, max_rows, replace=False))
+    def build(
+        cls, mesh_Y: Mesh, truth: GroundTruth, rows: np.ndarray | None = None, max_rows: int = MAX_ROWS
+    ) -> Scorer:
+        """The scorer of ``truth``'s ``rows`` (else of :func:`sampled_rows`, at most ``max_rows``)."""
+        rows = sampled_rows(truth, max_rows) if rows is None else rows
         partners, columns = np.unique(truth.ids_Y[rows], return_inverse=True)
         table = geodesic_distances(mesh_Y, partners).astype(np.float32)
         return cls(truth.ids_X[rows], columns, partners, table, geodesic_diameter(mesh_Y), mesh_Y.area)
@@ -115,4 +141,10 @@ class Scorer:
         """Errors at the sampled rows the mask ``rows`` selects, of the map X -> Y that ``C_YX`` (Y's coefficients
         to X's) induces."""
         predicted = pointwise_from_fmap(C_YX, basis_Y, basis_X, rows=self.rows_from[rows])
+        return ErrorSummary.from_distances(self.table[self.columns[rows], predicted], self.diameter, self.area)
+
+    def pointwise(self, p2p_XY: np.ndarray, rows: np.ndarray) -> ErrorSummary:
+        """Errors at the sampled rows the mask ``rows`` selects of the pointwise map ``p2p_XY`` (a vertex of Y per
+        vertex of X)."""
+        predicted = p2p_XY[self.rows_from[rows]]
         return ErrorSummary.from_distances(self.table[self.columns[rows], predicted], self.diameter, self.area)
